@@ -1,0 +1,69 @@
+"""Command-line interface: ``hystdisc <command> ...``.
+
+Each command lives in its own module of this package and provides ``add_parser(sub)``
+(register its ``argparse`` sub-parser) and ``run(args) -> int``. User errors
+(:class:`~hystdisc.errors.HystdiscError`) are printed as one line on stderr with exit
+status 2; Ctrl-C exits with 130 and leaves no partial files (outputs are written
+atomically).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+import warnings
+
+from hystdisc import __version__
+from hystdisc.errors import HystdiscError, HystdiscWarning
+
+COMMANDS = ("simulate", "discover", "predict", "report", "study")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The top-level parser with every available sub-command."""
+    parser = argparse.ArgumentParser(
+        prog="hystdisc",
+        description="Discover the hysteresis model of an MR damper from measured data.",
+    )
+    parser.add_argument("--version", action="version", version=f"hystdisc {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name in COMMANDS:
+        try:
+            mod = importlib.import_module(f"hystdisc.cli.{name}")
+        except ModuleNotFoundError as exc:  # a command not built yet
+            if exc.name != f"hystdisc.cli.{name}":
+                raise
+            continue
+        p = mod.add_parser(sub)
+        p.set_defaults(_run=mod.run)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``hystdisc`` console script."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "command", None):
+        parser.print_help(sys.stderr)
+        return 2
+
+    def _warn(message, category, filename, lineno, file=None, line=None):
+        if issubclass(category, HystdiscWarning):
+            print(f"hystdisc: warning: {message}", file=sys.stderr)
+        elif not getattr(args, "quiet", False):
+            print(f"hystdisc: warning: {category.__name__}: {message}", file=sys.stderr)
+
+    warnings.showwarning = _warn
+    try:
+        return int(args._run(args) or 0)
+    except HystdiscError as exc:
+        print(f"hystdisc: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("hystdisc: interrupted; no output was written", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
