@@ -119,7 +119,7 @@ def _rate_stiffness(b, n, w, z):
 
 
 @numba.njit(cache=True)
-def _n_sub(c, b, n, J, th, w, z, h, eps, mech, u):
+def _n_sub(c, b, n, J, th, w, z, h, eps, mech, u, ratio):
     dgdz, dgdw = _rate_stiffness(b, n, w, z)
     lam = dgdz  # already carries the |theta_dot| factor
     if mech:
@@ -135,7 +135,7 @@ def _n_sub(c, b, n, J, th, w, z, h, eps, mech, u):
         dtdth = abs(c[0] + 3.0 * c[6] * th * th)
         dtdz = abs(c[2] + c[3] * abs(w))
         lam += dtdw / J + math.sqrt(dtdth / J) + math.sqrt(dtdz * dgdw / J)
-    m = int(math.ceil(h * lam / STEP_RATIO))
+    m = int(math.ceil(h * lam / ratio))
     if m < MIN_SUBSTEPS:
         m = MIN_SUBSTEPS
     if m > MAX_SUBSTEPS:
@@ -143,12 +143,17 @@ def _n_sub(c, b, n, J, th, w, z, h, eps, mech, u):
     return m
 
 
-@numba.njit(cache=True)
-def _mech_batch(coef, b, n, J, t, u, offsets, th0, w0, z0, hold, eps, th_out, w_out, z_out, status):
-    """RK4 for release/forced runs, concatenated with ``offsets``."""
+@numba.njit(cache=True, parallel=True)
+def _mech_batch(
+    coef, bb, nn, JJ, t, u, offsets, th0, w0, z0, hold, eps, ratio, th_out, w_out, z_out, status
+):
+    """RK4 for release/forced runs, concatenated with ``offsets``; one model per run."""
     nruns = offsets.shape[0] - 1
-    for r in range(nruns):
+    for r in numba.prange(nruns):
         c = coef[r]
+        b = bb[r]
+        n = nn[r]
+        J = JJ[r]
         k0 = offsets[r]
         k1 = offsets[r + 1]
         th = th0[r]
@@ -162,7 +167,7 @@ def _mech_batch(coef, b, n, J, t, u, offsets, th0, w0, z0, hold, eps, th_out, w_
             h = t[k + 1] - t[k]
             ua = u[k]
             ub = u[k + 1] if hold == 0 else u[k]
-            m = _n_sub(c, b, n, J, th, w, z, h, eps, True, ua)
+            m = _n_sub(c, b, n, J, th, w, z, h, eps, True, ua, ratio)
             hs = h / m
             for s in range(m):
                 fa = s / m
@@ -207,12 +212,14 @@ def _mech_batch(coef, b, n, J, t, u, offsets, th0, w0, z0, hold, eps, th_out, w_
                 break
 
 
-@numba.njit(cache=True)
-def _driven_batch(coef, b, n, t, th_in, w_in, offsets, z0, eps, tq_out, z_out, status):
+@numba.njit(cache=True, parallel=True)
+def _driven_batch(coef, bb, nn, t, th_in, w_in, offsets, z0, eps, ratio, tq_out, z_out, status):
     """Integrate z under an imposed velocity (linear between samples) and return torque."""
     nruns = offsets.shape[0] - 1
-    for r in range(nruns):
+    for r in numba.prange(nruns):
         c = coef[r]
+        b = bb[r]
+        n = nn[r]
         k0 = offsets[r]
         k1 = offsets[r + 1]
         z = z0[r]
@@ -224,7 +231,7 @@ def _driven_batch(coef, b, n, t, th_in, w_in, offsets, z0, eps, tq_out, z_out, s
             wa = w_in[k]
             wb = w_in[k + 1]
             wmax = max(abs(wa), abs(wb))
-            m = _n_sub(c, b, n, 1.0, 0.0, wmax, z, h, eps, False, 0.0)
+            m = _n_sub(c, b, n, 1.0, 0.0, wmax, z, h, eps, False, 0.0, ratio)
             hs = h / m
             for s in range(m):
                 w1 = wa + (wb - wa) * (s / m)
@@ -255,7 +262,9 @@ def integrate_z(b, n, t, w, z0, eps):
     zo = np.empty(N)
     st = np.zeros(1, dtype=np.int64)
     z0a = np.array([z0])
-    _driven_batch(coef, b, n, t, np.zeros(N), w, offsets, z0a, eps, tq, zo, st)
+    _driven_batch(
+        coef, b.reshape(1, -1), np.array([n]), t, np.zeros(N), w, offsets, z0a, eps, 0.2, tq, zo, st
+    )
     return zo
 
 
@@ -296,6 +305,93 @@ def _diverged(model, runs: list[str]) -> HystdiscError:
     )
 
 
+def concat_runs(arrays: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Concatenate per-run arrays; return the flat array and the run offsets."""
+    offsets = np.zeros(len(arrays) + 1, dtype=np.int64)
+    offsets[1:] = np.cumsum([len(a) for a in arrays])
+    flat = np.concatenate([np.asarray(a, dtype=float) for a in arrays]) if arrays else np.zeros(0)
+    return flat, offsets
+
+
+def mech_batch(
+    coef: np.ndarray,
+    b: np.ndarray,
+    n: np.ndarray,
+    J: np.ndarray,
+    t: np.ndarray,
+    u: np.ndarray,
+    offsets: np.ndarray,
+    theta0: np.ndarray,
+    theta_dot0: np.ndarray,
+    z0: np.ndarray,
+    hold: str = "linear",
+    eps: float = SIGN_EPS,
+    ratio: float = STEP_RATIO,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Low-level batched release/forced simulation, one model per run (rows of ``coef``, ``b``).
+
+    Returns flat ``theta, theta_dot, z`` and the per-run status (0 ok, 1 diverged).
+    """
+    th = np.empty_like(t)
+    w = np.empty_like(t)
+    z = np.empty_like(t)
+    status = np.zeros(len(offsets) - 1, dtype=np.int64)
+    _mech_batch(
+        np.ascontiguousarray(coef, dtype=float),
+        np.ascontiguousarray(b, dtype=float),
+        np.asarray(n, dtype=float),
+        np.asarray(J, dtype=float),
+        t,
+        u,
+        offsets,
+        np.asarray(theta0, dtype=float),
+        np.asarray(theta_dot0, dtype=float),
+        np.asarray(z0, dtype=float),
+        0 if hold == "linear" else 1,
+        eps,
+        ratio,
+        th,
+        w,
+        z,
+        status,
+    )
+    return th, w, z, status
+
+
+def driven_batch(
+    coef: np.ndarray,
+    b: np.ndarray,
+    n: np.ndarray,
+    t: np.ndarray,
+    theta: np.ndarray,
+    theta_dot: np.ndarray,
+    offsets: np.ndarray,
+    z0: np.ndarray,
+    eps: float = SIGN_EPS,
+    ratio: float = STEP_RATIO,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Low-level batched driven simulation; returns flat ``torque, z`` and the status."""
+    tq = np.empty_like(t)
+    z = np.empty_like(t)
+    status = np.zeros(len(offsets) - 1, dtype=np.int64)
+    _driven_batch(
+        np.ascontiguousarray(coef, dtype=float),
+        np.ascontiguousarray(b, dtype=float),
+        np.asarray(n, dtype=float),
+        t,
+        theta,
+        theta_dot,
+        offsets,
+        np.asarray(z0, dtype=float),
+        eps,
+        ratio,
+        tq,
+        z,
+        status,
+    )
+    return tq, z, status
+
+
 def simulate_mech(
     model: Model | TermModel,
     t_list: list[np.ndarray],
@@ -310,55 +406,44 @@ def simulate_mech(
 ) -> tuple[list[SimResult], np.ndarray]:
     """Simulate several release/forced runs in one compiled call.
 
-    Returns the per-run results and the per-run status (0 ok, 1 diverged).
+    ``inputs=None`` is a release (per unit inertia, no input); otherwise the runs are
+    forced with the model's ``J``. Returns the per-run results and the per-run status
+    (0 ok, 1 diverged). The ``torque`` of each result is the damper torque (spring excluded).
     """
     tm = _as_terms(model)
     nr = len(t_list)
-    lens = [len(t) for t in t_list]
-    offsets = np.zeros(nr + 1, dtype=np.int64)
-    offsets[1:] = np.cumsum(lens)
-    t = np.concatenate([np.asarray(x, dtype=float) for x in t_list]) if nr else np.zeros(0)
+    t, offsets = concat_runs(t_list)
     if inputs is None:
         u = np.zeros_like(t)
         J = 1.0
     else:
-        u = np.concatenate([np.asarray(x, dtype=float) for x in inputs])
+        u, _ = concat_runs(inputs)
         J = tm.J
     coef = np.array([base_coefficients(tm, i) for i in currents]).reshape(nr, N_BASE)
-    b = tm.hysteresis_vector()
-    th0 = np.asarray(theta0, dtype=float)
+    b = np.tile(tm.hysteresis_vector(), (nr, 1))
     w0 = np.zeros(nr) if theta_dot0 is None else np.asarray(theta_dot0, dtype=float)
     zz0 = np.zeros(nr) if z0 is None else np.asarray(z0, dtype=float)
-    th = np.empty_like(t)
-    w = np.empty_like(t)
-    z = np.empty_like(t)
-    status = np.zeros(nr, dtype=np.int64)
-    _mech_batch(
+    th, w, z, status = mech_batch(
         coef,
         b,
-        tm.n,
-        J,
+        np.full(nr, tm.n),
+        np.full(nr, J),
         t,
         u,
         offsets,
-        th0,
+        np.asarray(theta0, float),
         w0,
         zz0,
-        0 if hold == "linear" else 1,
+        hold,
         eps,
-        th,
-        w,
-        z,
-        status,
     )
     if raise_on_divergence and status.any():
         raise _diverged(model, [str(k) for k in np.flatnonzero(status)])
     out = []
+    ks = tm.torque.get("theta", 0.0)
     for r in range(nr):
         sl = slice(offsets[r], offsets[r + 1])
-        tq = (
-            tm.eval_torque(th[sl], w[sl], z[sl], currents[r]) - tm.torque.get("theta", 0.0) * th[sl]
-        )
+        tq = tm.eval_torque(th[sl], w[sl], z[sl], currents[r]) - ks * th[sl]
         out.append(SimResult(t[sl], th[sl], w[sl], z[sl], tq, float(currents[r])))
     return out, status
 
@@ -380,18 +465,13 @@ def simulate_driven_runs(
     """
     tm = _as_terms(model)
     nr = len(t_list)
-    offsets = np.zeros(nr + 1, dtype=np.int64)
-    offsets[1:] = np.cumsum([len(x) for x in t_list])
-    t = np.concatenate([np.asarray(x, dtype=float) for x in t_list])
-    th = np.concatenate([np.asarray(x, dtype=float) for x in theta_list])
-    w = np.concatenate([np.asarray(x, dtype=float) for x in theta_dot_list])
+    t, offsets = concat_runs(t_list)
+    th, _ = concat_runs(theta_list)
+    w, _ = concat_runs(theta_dot_list)
     coef = np.array([base_coefficients(tm, i) for i in currents]).reshape(nr, N_BASE)
-    b = tm.hysteresis_vector()
+    b = np.tile(tm.hysteresis_vector(), (nr, 1))
     zz0 = np.zeros(nr) if z0 is None else np.asarray(z0, dtype=float)
-    tq = np.empty_like(t)
-    z = np.empty_like(t)
-    status = np.zeros(nr, dtype=np.int64)
-    _driven_batch(coef, b, tm.n, t, th, w, offsets, zz0, eps, tq, z, status)
+    tq, z, status = driven_batch(coef, b, np.full(nr, tm.n), t, th, w, offsets, zz0, eps)
     if raise_on_divergence and status.any():
         raise _diverged(model, [str(k) for k in np.flatnonzero(status)])
     out = []
