@@ -208,6 +208,8 @@ class Family:
     normalization: str = ""
     torque_terms: tuple[str, ...] = ()
     hysteresis_terms: tuple[str, ...] = ()
+    #: Parameters that multiply the current (fixed at 0 when every run has one current).
+    current_params: tuple[str, ...] = ()
 
     def param_names(self) -> list[str]:
         """Names of the damper parameters (rig parameters excluded)."""
@@ -240,6 +242,7 @@ class Bingham(Family):
         Param("f_b", "N*m/A", 0.0, _BIG, 1.0, "current-dependent yield torque"),
     )
     normalization = "none (no hysteretic state)"
+    current_params = ("c_b", "f_b")
     torque_terms = ("theta_dot", "i*theta_dot", "sign(theta_dot)", "i*sign(theta_dot)")
     hysteresis_terms = ()
 
@@ -277,6 +280,7 @@ class Dahl(Family):
         Param("rho", "1/rad", 1e-9, _BIG, 20.0, "hysteresis rate (loop sharpness)"),
     )
     normalization = "w saturates at 1 (by construction)"
+    current_params = ("k_wb",)
     torque_terms = ("theta_dot", "z", "i*z")
     hysteresis_terms = ("theta_dot", "|theta_dot|*z")
 
@@ -319,6 +323,7 @@ class LuGre(Family):
     )
     torque_terms = ("theta_dot", "i*theta_dot", "z", "i*z", "|theta_dot|*z")
     hysteresis_terms = ("theta_dot", "|theta_dot|*z")
+    current_params = ("sigma_b",)
 
     def to_terms(self, p):
         r = p["sigma_0"] * p["a_0"]
@@ -335,10 +340,11 @@ class LuGre(Family):
 
     def from_terms(self, tm):
         # bring z to the seed's scale, where the theta_dot coefficient of dz/dt is 1
+        # z = s * z_seed with s = b1 gives dz_seed = theta_dot + b2 |theta_dot| z_seed
         b1 = tm.hysteresis.get("theta_dot", 1.0) or 1.0
-        r = -tm.hysteresis.get("|theta_dot|*z", 0.0) / b1
+        r = -tm.hysteresis.get("|theta_dot|*z", 0.0)
         g = tm.torque.get
-        s = b1  # z_seed = z / b1  ->  coefficient of z_seed is a * b1
+        s = b1
         sigma_0 = g("i*z", 0.0) * s
         sigma_1 = -g("|theta_dot|*z", 0.0) * s / r if r != 0.0 else 0.0
         return {
@@ -373,6 +379,7 @@ class BoucWen(Family):
         Param("n", "-", 1e-4, 10.0, 1.0, "exponent"),
     )
     normalization = "z_sat = 1 (delta = beta + gamma)"
+    current_params = ("alpha_2", "c_2")
     torque_terms = ("theta_dot", "i*theta_dot", "z", "i*z")
     hysteresis_terms = ("theta_dot", "theta_dot*|z|^n", "|theta_dot|*z*|z|^n")
     _gamma_term = "|theta_dot|*z*|z|^n"

@@ -110,7 +110,7 @@ def _rate_stiffness(b, n, w, z):
     dz = abs(b[1]) * aw
     dw = abs(b[0]) + abs(b[1]) * az
     if b[2] != 0.0 or b[3] != 0.0 or b[4] != 0.0:
-        azf = max(az, 1e-8)
+        azf = max(az, 1e-3)  # |z|^n is not Lipschitz at 0; do not chase it
         pm1 = azf ** (n - 1.0)
         p = pm1 * azf
         dz += aw * (n * abs(b[2]) * pm1 + (n + 1.0) * abs(b[3]) * p + n * abs(b[4]) * pm1)
@@ -119,7 +119,7 @@ def _rate_stiffness(b, n, w, z):
 
 
 @numba.njit(cache=True)
-def _n_sub(c, b, n, J, th, w, z, h, eps, mech, u, ratio):
+def _n_sub(c, b, n, J, th, w, z, h, eps, mech, u, ratio, min_sub):
     dgdz, dgdw = _rate_stiffness(b, n, w, z)
     lam = dgdz  # already carries the |theta_dot| factor
     if mech:
@@ -136,8 +136,8 @@ def _n_sub(c, b, n, J, th, w, z, h, eps, mech, u, ratio):
         dtdz = abs(c[2] + c[3] * abs(w))
         lam += dtdw / J + math.sqrt(dtdth / J) + math.sqrt(dtdz * dgdw / J)
     m = int(math.ceil(h * lam / ratio))
-    if m < MIN_SUBSTEPS:
-        m = MIN_SUBSTEPS
+    if m < min_sub:
+        m = min_sub
     if m > MAX_SUBSTEPS:
         m = MAX_SUBSTEPS
     return m
@@ -145,7 +145,24 @@ def _n_sub(c, b, n, J, th, w, z, h, eps, mech, u, ratio):
 
 @numba.njit(cache=True, parallel=True)
 def _mech_batch(
-    coef, bb, nn, JJ, t, u, offsets, th0, w0, z0, hold, eps, ratio, th_out, w_out, z_out, status
+    coef,
+    bb,
+    nn,
+    JJ,
+    t,
+    u,
+    offsets,
+    th0,
+    w0,
+    z0,
+    hold,
+    eps,
+    ratio,
+    min_sub,
+    th_out,
+    w_out,
+    z_out,
+    status,
 ):
     """RK4 for release/forced runs, concatenated with ``offsets``; one model per run."""
     nruns = offsets.shape[0] - 1
@@ -167,7 +184,7 @@ def _mech_batch(
             h = t[k + 1] - t[k]
             ua = u[k]
             ub = u[k + 1] if hold == 0 else u[k]
-            m = _n_sub(c, b, n, J, th, w, z, h, eps, True, ua, ratio)
+            m = _n_sub(c, b, n, J, th, w, z, h, eps, True, ua, ratio, min_sub)
             hs = h / m
             for s in range(m):
                 fa = s / m
@@ -213,7 +230,9 @@ def _mech_batch(
 
 
 @numba.njit(cache=True, parallel=True)
-def _driven_batch(coef, bb, nn, t, th_in, w_in, offsets, z0, eps, ratio, tq_out, z_out, status):
+def _driven_batch(
+    coef, bb, nn, t, th_in, w_in, offsets, z0, eps, ratio, min_sub, tq_out, z_out, status
+):
     """Integrate z under an imposed velocity (linear between samples) and return torque."""
     nruns = offsets.shape[0] - 1
     for r in numba.prange(nruns):
@@ -231,7 +250,7 @@ def _driven_batch(coef, bb, nn, t, th_in, w_in, offsets, z0, eps, ratio, tq_out,
             wa = w_in[k]
             wb = w_in[k + 1]
             wmax = max(abs(wa), abs(wb))
-            m = _n_sub(c, b, n, 1.0, 0.0, wmax, z, h, eps, False, 0.0, ratio)
+            m = _n_sub(c, b, n, 1.0, 0.0, wmax, z, h, eps, False, 0.0, ratio, min_sub)
             hs = h / m
             for s in range(m):
                 w1 = wa + (wb - wa) * (s / m)
@@ -250,22 +269,6 @@ def _driven_batch(coef, bb, nn, t, th_in, w_in, offsets, z0, eps, ratio, tq_out,
                     tq_out[kk] = np.nan
                     z_out[kk] = np.nan
                 break
-
-
-@numba.njit(cache=True)
-def integrate_z(b, n, t, w, z0, eps):
-    """z(t) under a given velocity record (one run); used by the equation-error stage."""
-    N = t.shape[0]
-    coef = np.zeros((1, N_BASE))
-    offsets = np.array([0, N])
-    tq = np.empty(N)
-    zo = np.empty(N)
-    st = np.zeros(1, dtype=np.int64)
-    z0a = np.array([z0])
-    _driven_batch(
-        coef, b.reshape(1, -1), np.array([n]), t, np.zeros(N), w, offsets, z0a, eps, 0.2, tq, zo, st
-    )
-    return zo
 
 
 # ----------------------------------------------------------------------------- python API
@@ -327,6 +330,7 @@ def mech_batch(
     hold: str = "linear",
     eps: float = SIGN_EPS,
     ratio: float = STEP_RATIO,
+    min_sub: int = MIN_SUBSTEPS,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Low-level batched release/forced simulation, one model per run (rows of ``coef``, ``b``).
 
@@ -350,6 +354,7 @@ def mech_batch(
         0 if hold == "linear" else 1,
         eps,
         ratio,
+        min_sub,
         th,
         w,
         z,
@@ -369,6 +374,7 @@ def driven_batch(
     z0: np.ndarray,
     eps: float = SIGN_EPS,
     ratio: float = STEP_RATIO,
+    min_sub: int = MIN_SUBSTEPS,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Low-level batched driven simulation; returns flat ``torque, z`` and the status."""
     tq = np.empty_like(t)
@@ -385,11 +391,39 @@ def driven_batch(
         np.asarray(z0, dtype=float),
         eps,
         ratio,
+        min_sub,
         tq,
         z,
         status,
     )
     return tq, z, status
+
+
+def integrate_z(
+    b: np.ndarray,
+    n: float,
+    t_list: list[np.ndarray],
+    w_list: list[np.ndarray],
+    eps: float = SIGN_EPS,
+) -> list[np.ndarray]:
+    """z(t) of each run under its velocity record, from z = 0 (equation-error stage)."""
+    t, offsets = concat_runs(t_list)
+    w, _ = concat_runs(w_list)
+    nr = len(t_list)
+    _, z, _ = driven_batch(
+        np.zeros((nr, N_BASE)),
+        np.tile(b, (nr, 1)),
+        np.full(nr, n),
+        t,
+        np.zeros_like(t),
+        w,
+        offsets,
+        np.zeros(nr),
+        eps,
+        ratio=0.4,
+        min_sub=1,
+    )
+    return [z[offsets[k] : offsets[k + 1]] for k in range(nr)]
 
 
 def simulate_mech(

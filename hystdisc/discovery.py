@@ -1,0 +1,589 @@
+"""Two-stage discovery of the hysteresis model: :class:`Discovery`.
+
+Stage 1 (equation error, sparse): ``z`` is never measured, but given the few shape
+constants of a hysteresis candidate it is computed from the velocity record by
+integrating its rate. For each candidate shape (none, Dahl-type, Bouc-Wen seed form,
+Bouc-Wen standard form) the shape constants are found by variable projection (grid, then
+Nelder-Mead on the least-squares residual of the torque-side regression), the torque-side
+terms are selected by pysindy's STLSQ along a threshold path scored by BIC, and the shapes
+are compared by BIC. The winner is the *discovered structure*.
+
+Stage 2 (output error): each family's own structure is fitted by simulating every run
+(:mod:`hystdisc.fitting`), started from a stage-1 fit of that structure; families are
+ranked by BIC (nested ties resolved towards fewer parameters) and by leave-one-run-out
+held-out RMS.
+
+Examples
+--------
+>>> from hystdisc.models import Model
+>>> from hystdisc.synth import generate
+>>> data = generate(Model("dahl"), currents=(0, 0.5, 1), duration=3, noise=1e-3, seed=1)
+>>> d = Discovery(families=["dahl", "bingham"], heldout=False).fit(data)
+>>> d.family_
+'dahl'
+>>> bool(d.results_.families["dahl"]["rms"] < 1.2e-3)
+True
+"""
+
+from __future__ import annotations
+
+import sys
+import warnings
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import pysindy as ps
+from scipy.optimize import minimize
+
+from hystdisc.differentiation import differentiate
+from hystdisc.errors import HystdiscError, HystdiscWarning
+from hystdisc.fitting import (
+    FamilyParametrization,
+    FitData,
+    OEFit,
+    OutputErrorFitter,
+    TermParametrization,
+)
+from hystdisc.io import Dataset, distinct_currents, estimate_noise, trim_release, validate
+from hystdisc.library import DEFAULT_TORQUE_TERMS, FAMILY_SHAPE, SHAPES, TorqueLibrary
+from hystdisc.models import (
+    FAMILIES,
+    HYSTERESIS_TERM_NAMES,
+    TermModel,
+    format_equation,
+    get_family,
+)
+from hystdisc.simulation import SIGN_EPS, integrate_z
+
+ALL_FAMILIES = ("bingham", "dahl", "lugre", "bouc-wen", "bouc-wen-std")
+#: Families whose BIC lies within this of the best "fit equally well".
+EQUAL_FIT_BIC = 6.0
+
+
+# ----------------------------------------------------------------------------- stage 1 data
+
+
+@dataclass
+class EqData:
+    """Equation-error data of all runs (rows where the equation is evaluated)."""
+
+    experiment: str
+    t: list[np.ndarray]
+    theta: list[np.ndarray]
+    theta_dot: list[np.ndarray]
+    theta_ddot: list[np.ndarray]
+    target: list[np.ndarray]
+    currents: np.ndarray
+    rows: list[np.ndarray]  # boolean masks of rows used
+    window: int = 1
+    scale: float = 1.0  # displacement amplitude
+
+    def z_list(self, shape, s) -> list[np.ndarray]:
+        b, n = shape.vector(s)
+        if shape.name == "none":
+            return [np.zeros_like(t) for t in self.t]
+        return integrate_z(b, n, self.t, self.theta_dot, SIGN_EPS)
+
+    def design(self, terms: Sequence[str], z_list) -> tuple[np.ndarray, np.ndarray]:
+        lib = TorqueLibrary(list(terms))
+        blocks, ys = [], []
+        for k in range(len(self.t)):
+            X = np.column_stack(
+                [
+                    self.theta[k],
+                    self.theta_dot[k],
+                    z_list[k],
+                    np.full(self.t[k].size, self.currents[k]),
+                ]
+            )
+            m = self.rows[k]
+            F = lib.fit(X).transform(X[m]) if len(terms) else np.zeros((int(m.sum()), 0))
+            if self.experiment == "forced":
+                F = np.column_stack([self.theta_ddot[k][m], F])
+            blocks.append(F)
+            ys.append(self.target[k][m])
+        return np.vstack(blocks), np.concatenate(ys)
+
+    def n_eff(self, n: int) -> float:
+        """Effective number of independent equation-error samples (smoothing correlates them)."""
+        if self.experiment == "driven":
+            return float(n)
+        return float(n) * 2.0 / max(self.window, 2)
+
+
+def _lstsq(F, y):
+    sc = np.sqrt((F**2).mean(axis=0))
+    sc[sc == 0] = 1.0
+    c = np.linalg.lstsq(F / sc, y, rcond=None)[0] / sc
+    r = y - F @ c
+    return c, float(r @ r)
+
+
+@dataclass
+class ShapeFit:
+    """Stage-1 result for one hysteresis shape."""
+
+    shape: str
+    s: np.ndarray
+    terms: list[str]
+    coefs: dict[str, float]
+    J: float
+    rss: float
+    bic: float
+    path: list[dict] = field(default_factory=list)
+    inclusion: dict[str, float] | None = None
+
+    def term_model(self) -> TermModel:
+        sh = SHAPES[self.shape]
+        b, n = sh.vector(self.s)
+        hyst = {k: float(v) for k, v in zip(HYSTERESIS_TERM_NAMES, b, strict=True) if v != 0.0}
+        return TermModel(dict(self.coefs), hyst, n, self.J)
+
+
+def _varpro(eq: EqData, shape_name: str, terms: Sequence[str], s0=None):
+    """Shape constants minimizing the torque-side least-squares residual."""
+    shape = SHAPES[shape_name]
+    if shape_name == "none":
+        F, y = eq.design(terms, eq.z_list(shape, np.zeros(0)))
+        c, rss = _lstsq(F, y)
+        return np.zeros(0), c, rss
+
+    def obj(s):
+        with np.errstate(all="ignore"):
+            zl = eq.z_list(shape, s)
+            if (
+                not all(np.all(np.isfinite(z)) for z in zl)
+                or max(np.abs(z).max() for z in zl) > 1e6
+            ):
+                return 1e300
+            F, y = eq.design(terms, zl)
+            return _lstsq(F, y)[1]
+
+    grid = [s0] if s0 is not None else shape.grid(eq.scale)
+    vals = [obj(s) for s in grid]
+    best = np.asarray(grid[int(np.argmin(vals))], dtype=float)
+    res = minimize(
+        lambda s: np.log(obj(s)),
+        best,
+        method="Nelder-Mead",
+        options={"xatol": 1e-4, "fatol": 1e-7, "maxiter": 200 * len(best)},
+    )
+    s = res.x if res.fun <= np.log(min(vals)) else best
+    F, y = eq.design(terms, eq.z_list(shape, s))
+    c, rss = _lstsq(F, y)
+    return s, c, rss
+
+
+def _coef_dict(eq: EqData, terms, c):
+    off = 1 if eq.experiment == "forced" else 0
+    J = float(c[0]) if off else 1.0
+    return {t: float(v) for t, v in zip(terms, c[off:], strict=True)}, J
+
+
+def _eq_bic(eq, rss, n, k):
+    ne = eq.n_eff(n)
+    return float(ne * np.log(max(rss, 1e-300) / n) + k * np.log(ne))
+
+
+def fit_shape(
+    eq: EqData,
+    shape_name: str,
+    terms: Sequence[str],
+    threshold: float | None = None,
+    ensemble: bool = False,
+    seed: int = 0,
+) -> ShapeFit:
+    """Stage 1 for one hysteresis shape: variable projection + STLSQ term selection."""
+    from hystdisc.library import torque_terms_for
+
+    terms = torque_terms_for(shape_name, terms)
+    shape = SHAPES[shape_name]
+    s, c, rss = _varpro(eq, shape_name, terms)
+    F, y = eq.design(terms, eq.z_list(shape, s))
+    off = 1 if eq.experiment == "forced" else 0
+    sc = np.sqrt((F**2).mean(axis=0))
+    sc[sc == 0] = 1.0
+    ys = np.sqrt((y**2).mean()) or 1.0
+    Fn = F / sc
+    n = y.size
+    names = (["J"] if off else []) + list(terms)
+    thresholds = [threshold] if threshold is not None else list(np.geomspace(1e-4, 0.5, 24))
+    path = []
+    best = None
+    for th in [0.0, *thresholds]:
+        opt = ps.STLSQ(threshold=th, alpha=1e-10, max_iter=50, unbias=True)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            opt.fit(Fn, y / ys)
+        coef = np.asarray(opt.coef_).ravel()
+        support = np.abs(coef) > 0
+        if off:
+            support[0] = True  # inertia always
+        if not support.any():
+            continue
+        cs, r2 = _lstsq(F[:, support], y)
+        k = int(support.sum()) + len(shape.shape_names)
+        bic = _eq_bic(eq, r2, n, k)
+        full = np.zeros(len(names))
+        full[support] = cs
+        path.append(
+            {"threshold": th, "coefs": dict(zip(names, map(float, full), strict=True)), "bic": bic}
+        )
+        if best is None or bic < best[0] - 1e-9:
+            best = (bic, support.copy(), th)
+    _, support, th_best = best
+    sel = [t for t, on in zip(terms, support[off:], strict=True) if on]
+    # re-optimize the shape with the selected terms
+    s2, c2, rss2 = (
+        _varpro(eq, shape_name, sel, s0=s) if shape_name != "none" else _varpro(eq, "none", sel)
+    )
+    coefs, J = _coef_dict(eq, sel, c2)
+    k = len(sel) + off + len(shape.shape_names)
+    inclusion = None
+    if ensemble:
+        inclusion = _inclusion(F, y, names, th_best, seed)
+    return ShapeFit(shape_name, s2, sel, coefs, J, rss2, _eq_bic(eq, rss2, n, k), path, inclusion)
+
+
+def _inclusion(F, y, names, threshold, seed, n_models=40):
+    """Inclusion probability of each term over bootstrap resamples (pysindy EnsembleOptimizer)."""
+    sc = np.sqrt((F**2).mean(axis=0))
+    sc[sc == 0] = 1.0
+    ys = np.sqrt((y**2).mean()) or 1.0
+    np.random.seed(seed)  # EnsembleOptimizer draws from numpy's global generator
+    opt = ps.EnsembleOptimizer(
+        opt=ps.STLSQ(threshold=threshold, alpha=1e-10, unbias=True), bagging=True, n_models=n_models
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        opt.fit(F / sc, y / ys)
+    coefs = np.array([np.asarray(c).ravel() for c in opt.coef_list])
+    p = (np.abs(coefs) > 0).mean(axis=0)
+    return dict(zip(names, map(float, p), strict=True))
+
+
+# ----------------------------------------------------------------------------- helpers
+
+
+def _family_terms(name: str) -> tuple[list[str], list[str]]:
+    fam = FAMILIES[name]
+    return list(fam.torque_terms), list(fam.hysteresis_terms)
+
+
+def describe_structure(torque: Sequence[str], shape: str) -> str:
+    """Name a discovered structure after the family it matches (or 'modified Dahl')."""
+    tset = {t for t in torque if t not in ("theta", "1")}
+    for name in ALL_FAMILIES:
+        ft, _ = _family_terms(name)
+        if FAMILY_SHAPE[name] == shape and set(ft) == tset:
+            return FAMILIES[name].title if name != "lugre" else "LuGre"
+    if shape == "dahl" and tset == {"theta_dot", "z", "i*z", "i*theta_dot"}:
+        return "modified Dahl (Dahl + i*theta_dot)"
+    return f"{SHAPES[shape].name} hysteresis with torque terms {sorted(tset)}"
+
+
+# ----------------------------------------------------------------------------- estimator
+
+
+class Discovery:
+    """Discover the hysteresis model of an MR damper from runs at several currents.
+
+    Parameters
+    ----------
+    experiment : {'release', 'driven', 'forced'}, optional
+        Overrides the dataset's experiment type.
+    families : sequence of str, optional
+        Families fitted and compared by output error (default: all five).
+    model : str, optional
+        Declare the family instead of selecting one (it is still compared to no others).
+    torque_terms : sequence of str
+        Torque-side library (DESIGN.md section 3).
+    shapes : sequence of str
+        Hysteresis-side candidates for stage 1.
+    threshold : float, optional
+        Fixed STLSQ threshold (on normalized columns); default: chosen by BIC on a path.
+    ensemble : bool
+        Also estimate inclusion probabilities with pysindy's ``EnsembleOptimizer``.
+    heldout : bool
+        Compute leave-one-run-out held-out RMS.
+    seed : int
+        Seed for the ensemble resampling.
+    progress : callable, optional
+        Called with short progress messages (the CLI prints them on stderr).
+    max_nfev : int
+        Limit of simulations of the output-error fit per family.
+    """
+
+    def __init__(
+        self,
+        experiment: str | None = None,
+        families: Sequence[str] | None = None,
+        model: str | None = None,
+        torque_terms: Sequence[str] = DEFAULT_TORQUE_TERMS,
+        shapes: Sequence[str] = ("none", "dahl", "bouc-wen", "bouc-wen-std"),
+        threshold: float | None = None,
+        ensemble: bool = False,
+        heldout: bool = True,
+        seed: int = 0,
+        progress: Callable[[str], None] | None = None,
+        max_nfev: int = 60,
+    ) -> None:
+        self.experiment = experiment
+        self.families = families
+        self.model = model
+        self.torque_terms = torque_terms
+        self.shapes = shapes
+        self.threshold = threshold
+        self.ensemble = ensemble
+        self.heldout = heldout
+        self.seed = seed
+        self.progress = progress
+        self.max_nfev = max_nfev
+
+    # -- helpers
+    def _say(self, msg: str) -> None:
+        if self.progress is not None:
+            self.progress(msg)
+
+    def _prepare(self, dataset: Dataset) -> tuple[EqData, FitData]:
+        exp = self.experiment or dataset.experiment
+        if exp not in ("release", "driven", "forced"):
+            raise HystdiscError(
+                f"{dataset.source}: unknown experiment type '{exp}'; fix: use release, driven or forced"
+            )
+        runs = list(dataset.runs)
+        if exp == "driven" and any(r.torque is None for r in runs):
+            raise HystdiscError(
+                f"{dataset.source}: a driven experiment needs a torque column; fix: add it or use "
+                "--experiment release"
+            )
+        if exp == "forced" and any(r.input is None for r in runs):
+            raise HystdiscError(
+                f"{dataset.source}: a forced experiment needs an input column; fix: add it or use "
+                "--experiment release"
+            )
+        sig = "torque" if exp == "driven" else "theta"
+        noises = [estimate_noise(getattr(r, sig), r.fs) for r in runs]
+        noise = float(np.median(noises))
+        theta_noise = float(np.median([estimate_noise(r.theta, r.fs) for r in runs]))
+        if exp == "release":
+            runs = [trim_release(r, theta_noise) for r in runs]
+        eq_t, eq_th, eq_w, eq_a, eq_y, rows = [], [], [], [], [], []
+        fd = FitData(
+            exp,
+            [r.name for r in runs],
+            [],
+            [],
+            np.array([r.current for r in runs]),
+            [],
+            [],
+            [],
+            [],
+            noise,
+        )
+        windows = []
+        for r in runs:
+            d = differentiate(r.t, r.theta, theta_noise)
+            windows.append(d.window)
+            if not np.all(np.isfinite(d.theta_dot)) or np.ptp(r.theta) == 0:
+                raise HystdiscError(
+                    f"{dataset.source}, run {r.name}: the run never moves; fix: remove the run"
+                )
+            m = np.ones(r.t.size, dtype=bool)
+            m[: d.window // 2] = False
+            m[-(d.window // 2) or None :] = False
+            if exp == "driven":
+                # forget the unknown initial z: skip until the motion has swept its range once
+                travel = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(d.theta)))])
+                m &= travel >= np.ptp(d.theta)
+                if m.sum() < 20:
+                    m[:] = True
+            eq_t.append(r.t)
+            eq_th.append(d.theta)
+            eq_w.append(d.theta_dot)
+            eq_a.append(d.theta_ddot)
+            if exp == "release":
+                eq_y.append(-d.theta_ddot)
+            elif exp == "driven":
+                eq_y.append(np.asarray(r.torque, dtype=float))
+            else:
+                eq_y.append(np.asarray(r.input, dtype=float))
+            rows.append(m)
+            fd.t.append(r.t)
+            fd.y.append(np.asarray(r.torque if exp == "driven" else r.theta, dtype=float))
+            fd.theta.append(d.theta if exp == "driven" else np.asarray(r.theta, dtype=float))
+            fd.theta_dot.append(d.theta_dot)
+            fd.u.append(np.asarray(r.input, dtype=float) if exp == "forced" else np.zeros(r.t.size))
+            fd.mask.append(m if exp == "driven" else np.ones(r.t.size, dtype=bool))
+        scale = float(np.median([np.ptp(th) / 2 for th in eq_th])) or 1.0
+        # the smoothed signals are band-limited by the window: decimate the equation-error
+        # stage (z is still integrated with sub-steps on the decimated grid)
+        q = max(1, int(np.median(windows)) // 16) if exp != "driven" else 1
+        dec = lambda xs: [x[::q] for x in xs]  # noqa: E731
+        eq = EqData(
+            exp,
+            dec(eq_t),
+            dec(eq_th),
+            dec(eq_w),
+            dec(eq_a),
+            dec(eq_y),
+            fd.currents,
+            dec(rows),
+            max(1, int(np.median(windows)) // q),
+            scale,
+        )
+        return eq, fd
+
+    def _family_start(self, eq: EqData, name: str) -> dict[str, float]:
+        fam = get_family(name)
+        ft, _ = _family_terms(name)
+        if self.single_current_:
+            ft = [t for t in ft if not t.startswith("i")]
+        shape = FAMILY_SHAPE[name]
+        terms = ["theta", *ft]
+        s, c, _ = _varpro(eq, shape, terms)
+        coefs, J = _coef_dict(eq, terms, c)
+        b, n = SHAPES[shape].vector(s)
+        hyst = {k: float(v) for k, v in zip(HYSTERESIS_TERM_NAMES, b, strict=True) if v != 0.0}
+        tm = TermModel(coefs, hyst, n, J)
+        with np.errstate(all="ignore"):
+            p = fam.from_terms(tm)
+        p["k_s"] = max(coefs.get("theta", 0.0), 0.0)
+        p["J"] = J if J > 0 else 1.0
+        # keep the start inside the physical bounds
+        for spec in fam.params:
+            v = p.get(spec.name, spec.default)
+            if not np.isfinite(v):
+                v = spec.default
+            p[spec.name] = float(np.clip(v, spec.lower, spec.upper))
+        return p
+
+    # -- public API
+    def fit(self, dataset: Dataset) -> Discovery:
+        """Discover terms, fit the families and select one. Returns ``self``."""
+        from hystdisc.results import build_results
+
+        if not isinstance(dataset, Dataset):
+            raise TypeError("Discovery.fit expects a hystdisc.io.Dataset (see hystdisc.io.load)")
+        if self.model is not None:
+            fams = [get_family(self.model).name]
+        else:
+            fams = [get_family(f).name for f in (self.families or ALL_FAMILIES)]
+        # selecting a family needs several currents; a declared family can do with one
+        validate(dataset, need_currents=1 if self.model is not None else 2)
+        self.single_current_ = len(distinct_currents(dataset.currents)) < 2
+        if self.single_current_:
+            warnings.warn(
+                f"{dataset.source}: all runs share one current; the current-dependent "
+                "parameters are fixed at 0 and the i* terms left out of the library",
+                HystdiscWarning,
+                stacklevel=2,
+            )
+        self._say("preparing data (noise, derivatives)")
+        eq, fd = self._prepare(dataset)
+        self.experiment_ = eq.experiment
+        self.noise_std_ = fd.noise_std
+        self.n_runs_ = fd.n_runs
+        self.currents_ = fd.currents
+        self.window_ = eq.window
+        self._eq, self._fd = eq, fd
+
+        # stage 1
+        self.stage1_: dict[str, ShapeFit] = {}
+        terms = list(self.torque_terms)
+        if eq.experiment == "driven" and "theta" not in terms:
+            terms = ["theta", *terms]
+        if self.single_current_:
+            terms = [t for t in terms if not t.startswith("i")]
+        for shape in self.shapes:
+            self._say(f"stage 1: sparse regression with hysteresis shape '{shape}'")
+            self.stage1_[shape] = fit_shape(
+                eq, shape, terms, self.threshold, self.ensemble, self.seed
+            )
+        best = min(self.stage1_.values(), key=lambda f: f.bic)
+        self.discovered_shape_ = best.shape
+        self.discovered_ = best.term_model()
+        self.terms_ = {
+            "torque": [t for t in best.terms if not (t == "theta" and eq.experiment != "driven")],
+            "hysteresis": list(SHAPES[best.shape].terms),
+        }
+        self.discovered_name_ = describe_structure(best.terms, best.shape)
+
+        # stage 2: each family by output error
+        self.family_fits_: dict[str, OEFit] = {}
+        for k, name in enumerate(fams):
+            self._say(f"stage 2: output-error fit of {name} ({k + 1}/{len(fams)})")
+            start = self._family_start(eq, name)
+            fixed = {p: 0.0 for p in FAMILIES[name].current_params} if self.single_current_ else {}
+            par = FamilyParametrization(name, eq.experiment, start, fixed=fixed)
+            fitter = OutputErrorFitter(fd, par, max_nfev=self.max_nfev)
+            self.family_fits_[name] = fitter.fit(heldout=self.heldout)
+        # stage 2 of the discovered structure itself
+        self._say("stage 2: output-error fit of the discovered structure")
+        tpar = TermParametrization(
+            best.terms, best.shape, best.coefs, best.s, best.J, eq.experiment
+        )
+        self.discovered_fit_ = OutputErrorFitter(fd, tpar, max_nfev=self.max_nfev).fit(
+            heldout=False
+        )
+
+        # selection: lowest BIC; within EQUAL_FIT_BIC, fewest parameters wins
+        bics = {n: f.bic for n, f in self.family_fits_.items()}
+        bmin = min(bics.values())
+        close = [n for n, b in bics.items() if b - bmin < 2.0]
+        self.family_ = min(close, key=lambda n: (self.family_fits_[n].n_params, bics[n]))
+        self.equal_fits_ = sorted(
+            n
+            for n, b in bics.items()
+            if b - bics[self.family_] < EQUAL_FIT_BIC and n != self.family_
+        )
+        self.declared_ = self.model is not None
+        self.results_ = build_results(self, dataset)
+        return self
+
+    def _check_fitted(self):
+        if not hasattr(self, "results_"):
+            raise HystdiscError("this Discovery is not fitted yet; fix: call fit(dataset) first")
+
+    @property
+    def selected_fit_(self) -> OEFit:
+        self._check_fitted()
+        return self.family_fits_[self.family_]
+
+    def predict(self, dataset: Dataset, family: str | None = None) -> list[np.ndarray]:
+        """Simulate the fitted model on the runs of ``dataset`` (see :func:`predict_dataset`)."""
+        self._check_fitted()
+        from hystdisc.predict import predict_dataset
+
+        fit = self.family_fits_[family or self.family_]
+        return predict_dataset(fit.term_model, dataset, self.experiment_)
+
+    def score(self, dataset: Dataset) -> float:
+        """Coefficient of determination R^2 of the simulated output on ``dataset``."""
+        preds = self.predict(dataset)
+        meas = [r.torque if self.experiment_ == "driven" else r.theta for r in dataset.runs]
+        y = np.concatenate(meas)
+        p = np.concatenate(preds)
+        return float(1.0 - np.sum((y - p) ** 2) / np.sum((y - y.mean()) ** 2))
+
+    def equations(self) -> str:
+        """pysindy-style print of the discovered equations."""
+        if not hasattr(self, "discovered_fit_"):
+            self._check_fitted()
+        tm = self.discovered_fit_.term_model
+        lines = [format_equation("T", tm.torque)]
+        if tm.hysteresis:
+            lines.append(tm.equations().splitlines()[1])
+        if self.experiment_ == "forced":
+            lines.insert(0, f"J = {tm.J:.4g}")
+        return "\n".join(lines)
+
+    def print(self, file=None) -> None:
+        """Print the discovered equations (like ``pysindy.SINDy.print``)."""
+        print(self.equations(), file=file or sys.stdout)
+
+    def _repr_html_(self) -> str:
+        if not hasattr(self, "results_"):
+            return "<p>Discovery (not fitted)</p>"
+        return self.results_._repr_html_()

@@ -1,0 +1,527 @@
+"""Stage 2: output-error refinement of a structure over all runs jointly.
+
+Every run is simulated with the candidate model (release from its own initial angle,
+estimated as a nuisance parameter; forced from its input; driven from its imposed motion)
+and the measured signal is fitted by ``scipy.optimize.least_squares``. The Jacobian is
+computed by forward differences, all columns in one batched, compiled simulation call
+(a run's nuisance parameters only touch that run, so only that run is re-simulated).
+
+At the optimum the Jacobian gives 95 % intervals (``s^2 (J^T J)^-1``), an identifiability
+check (intervals wider than the value, near-singular directions of the column-scaled
+Jacobian), BIC, and leave-one-run-out held-out errors (one Gauss-Newton step from the joint
+fit without the held-out run's rows, then a simulation of that run).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from hystdisc.errors import HystdiscError
+from hystdisc.models import (
+    EFFECTS,
+    RIG_PARAMS,
+    Family,
+    Param,
+    TermModel,
+    get_family,
+)
+from hystdisc.simulation import N_BASE, base_coefficients, driven_batch, mech_batch
+
+Z95 = 1.959963984540054
+#: Sub-step ratio used while fitting (errors ~1e-6 of the signal, far below any noise).
+FIT_RATIO = 0.4
+
+
+# ----------------------------------------------------------------------------- data
+
+
+@dataclass
+class FitData:
+    """Runs prepared for the output-error fit (all arrays per run)."""
+
+    experiment: str
+    names: list[str]
+    t: list[np.ndarray]
+    y: list[np.ndarray]  # measured output: theta (release/forced) or torque (driven)
+    currents: np.ndarray
+    theta: list[np.ndarray]  # driven: imposed motion (smoothed); else measured theta
+    theta_dot: list[np.ndarray]  # driven: imposed velocity; else smoothed estimate
+    u: list[np.ndarray]  # forced: input; else zeros
+    mask: list[np.ndarray]  # samples that enter the residual
+    noise_std: float = 0.0
+    hold: str = "linear"
+
+    @property
+    def n_runs(self) -> int:
+        return len(self.t)
+
+    def subset(self, idx: list[int]) -> FitData:
+        pick = lambda xs: [xs[k] for k in idx]  # noqa: E731
+        return FitData(
+            self.experiment,
+            pick(self.names),
+            pick(self.t),
+            pick(self.y),
+            self.currents[idx],
+            pick(self.theta),
+            pick(self.theta_dot),
+            pick(self.u),
+            pick(self.mask),
+            self.noise_std,
+            self.hold,
+        )
+
+    def n_nuisance(self) -> int:
+        """Nuisance parameters per run (initial state)."""
+        return {"release": 1, "forced": 2, "driven": 0}[self.experiment]
+
+    def nuisance_names(self) -> list[str]:
+        per = {"release": ["theta0"], "forced": ["theta0", "theta_dot0"], "driven": []}
+        return [f"{p}[{n}]" for n in self.names for p in per[self.experiment]]
+
+    def nuisance_start(self) -> np.ndarray:
+        out = []
+        for k in range(self.n_runs):
+            if self.experiment == "release":
+                out.append(self.theta[k][0])
+            elif self.experiment == "forced":
+                out.extend([self.theta[k][0], self.theta_dot[k][0]])
+        return np.array(out, dtype=float)
+
+
+def simulate_entries(
+    data: FitData, models: list[TermModel], runs: list[int], nuis: list[np.ndarray]
+) -> list[np.ndarray]:
+    """Simulate (model, run) pairs in one compiled call; return the predicted outputs."""
+    ne = len(runs)
+    coef = np.empty((ne, N_BASE))
+    b = np.empty((ne, 5))
+    n = np.empty(ne)
+    J = np.empty(ne)
+    for e, (tm, r) in enumerate(zip(models, runs, strict=True)):
+        coef[e] = base_coefficients(tm, data.currents[r])
+        b[e] = tm.hysteresis_vector()
+        n[e] = tm.n
+        J[e] = tm.J if data.experiment == "forced" else 1.0
+    offsets = np.zeros(ne + 1, dtype=np.int64)
+    offsets[1:] = np.cumsum([len(data.t[r]) for r in runs])
+    t = np.concatenate([data.t[r] for r in runs])
+    with np.errstate(all="ignore"):
+        if data.experiment == "driven":
+            th = np.concatenate([data.theta[r] for r in runs])
+            w = np.concatenate([data.theta_dot[r] for r in runs])
+            out, _, status = driven_batch(
+                coef, b, n, t, th, w, offsets, np.zeros(ne), ratio=FIT_RATIO, min_sub=1
+            )
+        else:
+            u = np.concatenate([data.u[r] for r in runs])
+            th0 = np.array([v[0] for v in nuis])
+            w0 = np.array([v[1] if len(v) > 1 else 0.0 for v in nuis])
+            out, _, _, status = mech_batch(
+                coef,
+                b,
+                n,
+                J,
+                t,
+                u,
+                offsets,
+                th0,
+                w0,
+                np.zeros(ne),
+                hold=data.hold,
+                ratio=FIT_RATIO,
+                min_sub=1,
+            )
+    res = [out[offsets[e] : offsets[e + 1]] for e in range(ne)]
+    for e in range(ne):
+        if status[e] or not np.all(np.isfinite(res[e])):
+            res[e] = np.where(np.isfinite(res[e]), res[e], 1e6)
+    return res
+
+
+# ----------------------------------------------------------------------------- parametrizations
+
+
+class Parametrization:
+    """Free parameters <-> term model. Subclasses define names, start and bounds."""
+
+    names: list[str]
+    x0: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    normalization: str = ""
+
+    def terms(self, x: np.ndarray) -> TermModel:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def params(self, x: np.ndarray) -> dict[str, float]:
+        """Every reported parameter (free and derived) for the free vector ``x``."""
+        return dict(zip(self.names, map(float, x), strict=True))
+
+
+def _clip_start(x0, lo, hi):
+    """Clip a start strictly inside the bounds (least_squares needs an interior start)."""
+    x0 = np.asarray(x0, dtype=float).copy()
+    lo_in = np.where(np.isfinite(lo), lo + 1e-10 * (np.abs(lo) + 1e-3), lo)
+    hi_in = np.where(np.isfinite(hi), hi - 1e-10 * (np.abs(hi) + 1e-3), hi)
+    return np.clip(x0, lo_in, hi_in)
+
+
+class FamilyParametrization(Parametrization):
+    """A family's own parameters (+ rig ``k_s``/``J`` + effect parameters).
+
+    Bouc-Wen families are normalized to ``z_sat = 1`` (``delta = beta + gamma``, so
+    ``delta`` is derived); the other families carry their own scale.
+    """
+
+    def __init__(
+        self,
+        family: str | Family,
+        experiment: str,
+        start: dict[str, float],
+        effects: tuple[str, ...] = (),
+        fixed: dict[str, float] | None = None,
+    ) -> None:
+        self.family = get_family(family) if isinstance(family, str) else family
+        self.fixed = dict(fixed or {})
+        self.experiment = experiment
+        self.effects = tuple(effects)
+        self.derived = ["delta"] if self.family.name.startswith("bouc-wen") else []
+        self.normalization = self.family.normalization
+        specs: list[Param] = [
+            p for p in self.family.params if p.name not in self.derived and p.name not in self.fixed
+        ]
+        specs.append(RIG_PARAMS[0])  # k_s
+        if experiment == "forced":
+            specs.append(RIG_PARAMS[1])  # J
+        for e in self.effects:
+            specs.extend(EFFECTS[e].params)
+        self.specs = specs
+        self.names = [p.name for p in specs]
+        self.lower = np.array([p.lower for p in specs], dtype=float)
+        self.upper = np.array([p.upper for p in specs], dtype=float)
+        x0 = [start.get(p.name, p.default) for p in specs]
+        self.x0 = _clip_start(x0, self.lower, self.upper)
+
+    def params(self, x):
+        p = dict(zip(self.names, map(float, x), strict=True))
+        p.update(self.fixed)
+        if self.derived:
+            p["delta"] = p["beta"] + p["gamma"]
+        return p
+
+    def terms(self, x):
+        p = self.params(x)
+        tm = self.family.to_terms(p)
+        tm.torque["theta"] = tm.torque.get("theta", 0.0) + p["k_s"]
+        tm.J = p.get("J", 1.0)
+        for e in self.effects:
+            for k, v in EFFECTS[e].to_torque(p, p["k_s"]).items():
+                tm.torque[k] = tm.torque.get(k, 0.0) + v
+        return tm
+
+
+class TermParametrization(Parametrization):
+    """Free coefficients of chosen torque terms plus the shape constants of a hysteresis shape."""
+
+    def __init__(
+        self,
+        torque_terms,
+        shape,
+        start_coefs: dict[str, float],
+        start_shape,
+        J0=1.0,
+        experiment="release",
+    ):
+        from hystdisc.library import SHAPES
+
+        self.shape = SHAPES[shape] if isinstance(shape, str) else shape
+        self.torque_terms = list(torque_terms)
+        self.experiment = experiment
+        self.normalization = "z_sat = 1" if self.shape.name != "none" else "none"
+        self.names = list(self.torque_terms) + list(self.shape.shape_names)
+        x0 = [start_coefs.get(k, 0.0) for k in self.torque_terms] + list(start_shape)
+        lo = [-np.inf] * len(self.torque_terms) + [-np.inf] * len(self.shape.shape_names)
+        hi = [np.inf] * len(self.names)
+        if experiment == "forced":
+            self.names.append("J")
+            x0.append(J0)
+            lo.append(1e-12)
+            hi.append(np.inf)
+        self.lower = np.array(lo, dtype=float)
+        self.upper = np.array(hi, dtype=float)
+        self.x0 = _clip_start(x0, self.lower, self.upper)
+
+    def terms(self, x):
+        nt = len(self.torque_terms)
+        ns = len(self.shape.shape_names)
+        b, n = self.shape.vector(np.asarray(x[nt : nt + ns]))
+        from hystdisc.models import HYSTERESIS_TERM_NAMES
+
+        hyst = {k: float(v) for k, v in zip(HYSTERESIS_TERM_NAMES, b, strict=True) if v != 0.0}
+        tm = TermModel(dict(zip(self.torque_terms, map(float, x[:nt]), strict=True)), hyst, n)
+        if self.experiment == "forced":
+            tm.J = float(x[-1])
+        return tm
+
+    def params(self, x):
+        nt = len(self.torque_terms)
+        ns = len(self.shape.shape_names)
+        p = dict(zip(self.torque_terms, map(float, x[:nt]), strict=True))
+        p.update(self.shape.shape_dict(np.asarray(x[nt : nt + ns])))
+        if self.experiment == "forced":
+            p["J"] = float(x[-1])
+        return p
+
+
+# ----------------------------------------------------------------------------- the fit
+
+
+@dataclass
+class OEFit:
+    """Result of an output-error fit."""
+
+    par: Parametrization
+    x: np.ndarray
+    nuisance: np.ndarray
+    params: dict[str, float]
+    ci95: dict[str, tuple[float, float]]
+    stderr: dict[str, float]
+    identifiable: dict[str, bool]
+    notes: list[str]
+    rms: float
+    rss: float
+    n_obs: int
+    n_params: int
+    bic: float
+    predictions: list[np.ndarray]
+    residuals: list[np.ndarray]
+    heldout_rms: float | None = None
+    heldout_predictions: list[np.ndarray] | None = None
+    nfev: int = 0
+    success: bool = True
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def term_model(self) -> TermModel:
+        return self.par.terms(self.x)
+
+
+class OutputErrorFitter:
+    """Fit a :class:`Parametrization` to :class:`FitData` by output error."""
+
+    def __init__(
+        self, data: FitData, par: Parametrization, max_nfev: int = 60, rel_step: float = 1e-6
+    ) -> None:
+        self.data = data
+        self.par = par
+        self.max_nfev = max_nfev
+        self.rel_step = rel_step
+        self.npar = len(par.names)
+        self.nnu = data.n_nuisance()
+        self.masks = data.mask
+        self._rows = np.cumsum([0] + [int(m.sum()) for m in data.mask])
+
+    # split the full vector
+    def _split(self, v):
+        x = v[: self.npar]
+        nu = (
+            v[self.npar :].reshape(self.data.n_runs, self.nnu)
+            if self.nnu
+            else np.zeros((self.data.n_runs, 0))
+        )
+        return x, nu
+
+    def _resid_from(self, preds, runs):
+        return np.concatenate(
+            [(p - self.data.y[r])[self.masks[r]] for p, r in zip(preds, runs, strict=True)]
+        )
+
+    def residuals(self, v):
+        x, nu = self._split(v)
+        tm = self.par.terms(x)
+        runs = list(range(self.data.n_runs))
+        preds = simulate_entries(self.data, [tm] * len(runs), runs, [nu[r] for r in runs])
+        return self._resid_from(preds, runs)
+
+    def jacobian(self, v):
+        x, nu = self._split(v)
+        R = self.data.n_runs
+        steps = self.rel_step * np.maximum(np.abs(v), 1e-3 * (np.abs(v).max() + 1e-12))
+        steps = np.maximum(steps, 1e-10)
+        models, runs, nuis, cols = [], [], [], []
+        tm0 = self.par.terms(x)
+        for r in range(R):
+            models.append(tm0)
+            runs.append(r)
+            nuis.append(nu[r])
+            cols.append(-1)
+        for j in range(self.npar):
+            xj = x.copy()
+            xj[j] += steps[j]
+            if xj[j] > self.par.upper[j]:
+                xj[j] -= 2 * steps[j]
+            tmj = self.par.terms(xj)
+            for r in range(R):
+                models.append(tmj)
+                runs.append(r)
+                nuis.append(nu[r])
+                cols.append(j)
+        for r in range(R):
+            for q in range(self.nnu):
+                nq = nu[r].copy()
+                nq[q] += steps[self.npar + r * self.nnu + q]
+                models.append(tm0)
+                runs.append(r)
+                nuis.append(nq)
+                cols.append(self.npar + r * self.nnu + q)
+        preds = simulate_entries(self.data, models, runs, nuis)
+        base = preds[:R]
+        Jm = np.zeros((self._rows[-1], len(v)))
+        for e in range(R, len(preds)):
+            r = runs[e]
+            j = cols[e]
+            h = steps[j] if j >= self.npar or x[j] + steps[j] <= self.par.upper[j] else -steps[j]
+            d = (preds[e] - base[r])[self.masks[r]] / h
+            Jm[self._rows[r] : self._rows[r + 1], j] = d
+        return Jm
+
+    def fit(self, heldout: bool = True) -> OEFit:
+        p0 = np.concatenate([self.par.x0, self.data.nuisance_start()])
+        lo = np.concatenate([self.par.lower, np.full(self.nnu * self.data.n_runs, -np.inf)])
+        hi = np.concatenate([self.par.upper, np.full(self.nnu * self.data.n_runs, np.inf)])
+        try:
+            sol = least_squares(
+                self.residuals,
+                p0,
+                jac=self.jacobian,
+                bounds=(lo, hi),
+                x_scale="jac",
+                method="trf",
+                max_nfev=self.max_nfev,
+                xtol=1e-10,
+                ftol=1e-10,
+                gtol=1e-10,
+            )
+        except ValueError as exc:  # non-finite start, etc.
+            raise HystdiscError(
+                f"output-error fit of {self.par.names} failed to start ({exc}); fix: check the "
+                "data for motion and the starting parameters"
+            ) from None
+        return self._finish(sol.x, sol.nfev, bool(sol.success), heldout)
+
+    def _finish(self, v, nfev, success, heldout) -> OEFit:
+        x, nu = self._split(v)
+        res = self.residuals(v)
+        Jm = self.jacobian(v)
+        N = res.size
+        k = len(v)
+        rss = float(res @ res)
+        rms = float(np.sqrt(rss / N))
+        bic = float(N * np.log(max(rss, 1e-300) / N) + k * np.log(N))
+        s2 = rss / max(N - k, 1)
+        # covariance with column scaling for conditioning
+        scale = np.sqrt((Jm**2).sum(axis=0))
+        scale[scale == 0] = 1.0
+        Js = Jm / scale
+        U, S, Vt = np.linalg.svd(Js, full_matrices=False)
+        tol = S.max() * 1e-10 if S.size else 0.0
+        Sinv = np.where(S > tol, 1.0 / np.where(S > tol, S, 1.0), 0.0)
+        cov_s = (Vt.T * Sinv**2) @ Vt
+        cov = s2 * cov_s / np.outer(scale, scale)
+        covx = cov[: self.npar, : self.npar]
+        # propagate to reported (incl. derived) parameters
+        p = self.par.params(x)
+        keys = list(p)
+        G = np.zeros((len(keys), self.npar))
+        for j in range(self.npar):
+            h = 1e-7 * max(abs(x[j]), 1e-6)
+            xj = x.copy()
+            xj[j] += h
+            pj = self.par.params(xj)
+            G[:, j] = [(pj[kk] - p[kk]) / h for kk in keys]
+        covp = G @ covx @ G.T
+        se = np.sqrt(np.clip(np.diag(covp), 0, None))
+        ci = {kk: (p[kk] - Z95 * s, p[kk] + Z95 * s) for kk, s in zip(keys, se, strict=True)}
+        stderr = dict(zip(keys, map(float, se), strict=True))
+        notes: list[str] = []
+        ident = {kk: bool(Z95 * stderr[kk] <= abs(p[kk])) for kk in keys}
+        # near-singular directions of the (global-parameter) scaled Jacobian
+        cond = S[0] / S[-1] if S.size and S[-1] > 0 else np.inf
+        if cond > 1e6 and S.size:
+            vec = Vt[-1][: self.npar]
+            order = np.argsort(-np.abs(vec))[:3]
+            combo = " ".join(
+                f"{vec[j] * np.sign(vec[order[0]]):+.2f}*{self.par.names[j]}"
+                for j in order
+                if abs(vec[j]) > 0.1
+            )
+            notes.append(
+                f"near-singular direction (condition {cond:.1e}): {combo} (scaled) is not "
+                "determined by the data"
+            )
+            for j in order:
+                if abs(vec[j]) > 0.3 and self.par.names[j] in ident:
+                    ident[self.par.names[j]] = False
+        for kk in keys:
+            if not ident[kk]:
+                notes.append(
+                    f"{kk} is not identifiable (95 % interval [{ci[kk][0]:.4g}, {ci[kk][1]:.4g}] "
+                    f"is wider than its value {p[kk]:.4g})"
+                )
+        runs = list(range(self.data.n_runs))
+        tm = self.par.terms(x)
+        preds = simulate_entries(self.data, [tm] * len(runs), runs, [nu[r] for r in runs])
+        resid = [preds[r] - self.data.y[r] for r in runs]
+        fit = OEFit(
+            par=self.par,
+            x=x,
+            nuisance=nu,
+            params=p,
+            ci95=ci,
+            stderr=stderr,
+            identifiable=ident,
+            notes=notes,
+            rms=rms,
+            rss=rss,
+            n_obs=N,
+            n_params=k,
+            bic=bic,
+            predictions=preds,
+            residuals=resid,
+            nfev=nfev,
+            success=success,
+        )
+        if heldout and self.data.n_runs >= 2:
+            fit.heldout_rms, fit.heldout_predictions = self._heldout(v, res, Jm)
+        return fit
+
+    def _heldout(self, v, res, Jm):
+        """Leave-one-run-out: one Gauss-Newton step without the run's rows, then simulate it."""
+        x, nu = self._split(v)
+        R = self.data.n_runs
+        sq = 0.0
+        cnt = 0
+        preds = []
+        for r in range(R):
+            keep = np.ones(res.size, dtype=bool)
+            keep[self._rows[r] : self._rows[r + 1]] = False
+            cols = np.ones(len(v), dtype=bool)
+            cols[self.npar + r * self.nnu : self.npar + (r + 1) * self.nnu] = False
+            Jo = Jm[keep][:, cols]
+            scale = np.sqrt((Jo**2).sum(axis=0))
+            scale[scale == 0] = 1.0
+            delta = np.linalg.lstsq(Jo / scale, -res[keep], rcond=1e-10)[0] / scale
+            vr = v.copy()
+            vr[cols] += delta
+            xr = np.clip(vr[: self.npar], self.par.lower, self.par.upper)
+            tm = self.par.terms(xr)
+            pr = simulate_entries(self.data, [tm], [r], [nu[r]])[0]
+            e = (pr - self.data.y[r])[self.masks[r]]
+            sq += float(e @ e)
+            cnt += e.size
+            preds.append(pr)
+        return float(np.sqrt(sq / max(cnt, 1))), preds
