@@ -113,9 +113,11 @@ class EqData:
 
 
 def _lstsq(F, y):
+    """Least squares through the (small) Gram matrix of scaled columns; returns coefs, RSS."""
     sc = np.sqrt((F**2).mean(axis=0))
     sc[sc == 0] = 1.0
-    c = np.linalg.lstsq(F / sc, y, rcond=None)[0] / sc
+    Fn = F / sc
+    c = np.linalg.lstsq(Fn.T @ Fn, Fn.T @ y, rcond=1e-13)[0] / sc
     r = y - F @ c
     return c, float(r @ r)
 

@@ -427,7 +427,11 @@ class OutputErrorFitter:
         scale = np.sqrt((Jm**2).sum(axis=0))
         scale[scale == 0] = 1.0
         Js = Jm / scale
-        U, S, Vt = np.linalg.svd(Js, full_matrices=False)
+        # eigen-decomposition of the small Gram matrix (much cheaper than an SVD of J)
+        ev, V = np.linalg.eigh(Js.T @ Js)
+        order = np.argsort(-ev)
+        S = np.sqrt(np.clip(ev[order], 0.0, None))
+        Vt = V[:, order].T
         tol = S.max() * 1e-10 if S.size else 0.0
         Sinv = np.where(S > tol, 1.0 / np.where(S > tol, S, 1.0), 0.0)
         cov_s = (Vt.T * Sinv**2) @ Vt
@@ -506,15 +510,19 @@ class OutputErrorFitter:
         sq = 0.0
         cnt = 0
         preds = []
+        G = Jm.T @ Jm
+        g = Jm.T @ res
         for r in range(R):
-            keep = np.ones(res.size, dtype=bool)
-            keep[self._rows[r] : self._rows[r + 1]] = False
+            sl = slice(self._rows[r], self._rows[r + 1])
             cols = np.ones(len(v), dtype=bool)
             cols[self.npar + r * self.nnu : self.npar + (r + 1) * self.nnu] = False
-            Jo = Jm[keep][:, cols]
-            scale = np.sqrt((Jo**2).sum(axis=0))
+            Jr = Jm[sl]
+            Go = (G - Jr.T @ Jr)[np.ix_(cols, cols)]
+            go = (g - Jr.T @ res[sl])[cols]
+            scale = np.sqrt(np.clip(np.diag(Go), 0, None))
             scale[scale == 0] = 1.0
-            delta = np.linalg.lstsq(Jo / scale, -res[keep], rcond=1e-10)[0] / scale
+            Gs = Go / np.outer(scale, scale)
+            delta = -np.linalg.lstsq(Gs, go / scale, rcond=1e-12)[0] / scale
             vr = v.copy()
             vr[cols] += delta
             xr = np.clip(vr[: self.npar], self.par.lower, self.par.upper)

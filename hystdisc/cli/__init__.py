@@ -17,12 +17,21 @@ import warnings
 from hystdisc import __version__
 from hystdisc.errors import HystdiscError, HystdiscWarning
 
-COMMANDS = ("simulate", "discover", "predict", "report", "study")
+COMMANDS = ("discover", "predict", "simulate", "report", "study")
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """argparse parser whose errors are one line (no usage block) with exit status 2."""
+
+    def error(self, message: str):  # noqa: D401
+        msg = " ".join(str(message).split())
+        print(f"hystdisc: error: {self.prog}: {msg}; fix: see {self.prog} --help", file=sys.stderr)
+        sys.exit(2)
 
 
 def build_parser() -> argparse.ArgumentParser:
     """The top-level parser with every available sub-command."""
-    parser = argparse.ArgumentParser(
+    parser = OneLineParser(
         prog="hystdisc",
         description="Discover the hysteresis model of an MR damper from measured data.",
     )

@@ -1,0 +1,78 @@
+"""Options and helpers shared by the commands that read data."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from collections.abc import Callable
+
+from hystdisc.errors import HystdiscError
+from hystdisc.io import Dataset, load
+
+
+def add_data_options(p: argparse.ArgumentParser) -> None:
+    """``--experiment``, ``--rig``, ``--column`` and ``--units`` for commands that read data."""
+    p.add_argument(
+        "--experiment",
+        choices=("release", "driven", "forced"),
+        help="experiment type (default: from the columns: torque -> driven, input -> forced)",
+    )
+    p.add_argument(
+        "--rig",
+        metavar="RIG.toml",
+        help="rig description for header-less tables (columns, units, current from name)",
+    )
+    p.add_argument(
+        "--column",
+        action="append",
+        default=[],
+        metavar="NAME=COL",
+        help="map a canonical column (run,t,theta,current,torque,input) to the file's "
+        "name or 0-based index (repeatable)",
+    )
+    p.add_argument(
+        "--units",
+        action="append",
+        default=[],
+        metavar="NAME=UNIT",
+        help="units of a column, e.g. theta=deg or theta=mm (repeatable)",
+    )
+
+
+def _pairs(items: list[str], flag: str) -> dict[str, str]:
+    out = {}
+    for item in items:
+        for part in item.split(","):
+            if "=" not in part or not part.split("=", 1)[0].strip():
+                raise HystdiscError(
+                    f"{flag} {part!r} is not NAME=VALUE; fix: write e.g. {flag} theta=angle"
+                )
+            k, v = part.split("=", 1)
+            out[k.strip()] = v.strip()
+    return out
+
+
+def load_data(args: argparse.Namespace, files: list[str]) -> Dataset:
+    """Load the data files named on the command line with the data options."""
+    columns: dict = _pairs(args.column, "--column")
+    columns = {k: int(v) if v.isdigit() else v for k, v in columns.items()}
+    return load(
+        files if len(files) > 1 else files[0],
+        experiment=args.experiment,
+        rig=args.rig,
+        columns=columns or None,
+        units=_pairs(args.units, "--units") or None,
+    )
+
+
+def progress_printer(quiet: bool) -> Callable[[str], None] | None:
+    """A progress callback printing ``[  1.2 s] message`` on stderr (None when quiet)."""
+    if quiet:
+        return None
+    t0 = time.perf_counter()
+
+    def say(msg: str) -> None:
+        print(f"[{time.perf_counter() - t0:6.1f} s] {msg}", file=sys.stderr, flush=True)
+
+    return say

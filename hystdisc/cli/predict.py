@@ -1,0 +1,68 @@
+"""``hystdisc predict``: simulate a fitted model on new runs.
+
+Example::
+
+    hystdisc predict results.json new_runs.csv -o predicted.csv
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+
+from hystdisc.cli.common import add_data_options, load_data
+from hystdisc.errors import HystdiscError
+from hystdisc.io import atomic_write_text
+from hystdisc.predict import predict_dataset
+from hystdisc.results import Results
+
+
+def add_parser(sub) -> argparse.ArgumentParser:
+    p = sub.add_parser(
+        "predict",
+        help="simulate a fitted model (results.json) on new runs",
+        description=(
+            "Simulate the model of a results.json on the runs of DATA (release from each run's "
+            "first angle, driven from its motion, forced from its input) and write "
+            "run,t,current,<measured>,<measured>_pred."
+        ),
+    )
+    p.add_argument("results", metavar="RESULTS.json")
+    p.add_argument("data", nargs="+", metavar="DATA")
+    p.add_argument("-o", "--output", required=True, metavar="OUT.csv")
+    p.add_argument("--family", help="use this family's fit instead of the final model")
+    add_data_options(p)
+    p.add_argument("--force", action="store_true", help="overwrite OUT.csv")
+    p.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    return p
+
+
+def run(args: argparse.Namespace) -> int:
+    res = Results.load(args.results)
+    if args.family and args.family not in res.families:
+        raise HystdiscError(
+            f"{args.results}: no fit of family '{args.family}'; fix: use one of "
+            f"{', '.join(res.families)}"
+        )
+    tm = res.term_model(args.family)
+    if args.experiment is None:
+        args.experiment = res.experiment
+    data = load_data(args, args.data)
+    preds = predict_dataset(tm, data, res.experiment)
+    meas = data.measured()
+    lines = [f"run,t,current,{meas},{meas}_pred"]
+    rms = []
+    for r, p in zip(data.runs, preds, strict=True):
+        y = getattr(r, meas)
+        rms.append(float(np.sqrt(np.mean((p - y) ** 2))))
+        lines.extend(
+            f"{r.name},{t:.10g},{r.current:.10g},{a:.10g},{b:.10g}"
+            for t, a, b in zip(r.t, y, p, strict=True)
+        )
+    out = atomic_write_text(args.output, "\n".join(lines) + "\n", force=args.force)
+    if not args.quiet:
+        for r, e in zip(data.runs, rms, strict=True):
+            print(f"run {r.name} ({r.current:g} A): RMS {meas} error {e:.4g}")
+        print(f"wrote {out} ({len(data.runs)} runs)")
+    return 0
