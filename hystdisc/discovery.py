@@ -253,7 +253,7 @@ def _inclusion(F, y, names, threshold, seed, n_models=40):
     sc = np.sqrt((F**2).mean(axis=0))
     sc[sc == 0] = 1.0
     ys = np.sqrt((y**2).mean()) or 1.0
-    np.random.seed(seed)  # EnsembleOptimizer draws from numpy's global generator
+    np.random.seed(seed)  # noqa: NPY002 - EnsembleOptimizer draws from numpy's global generator
     opt = ps.EnsembleOptimizer(
         opt=ps.STLSQ(threshold=threshold, alpha=1e-10, unbias=True), bagging=True, n_models=n_models
     )
@@ -315,6 +315,9 @@ class Discovery:
         Called with short progress messages (the CLI prints them on stderr).
     max_nfev : int
         Limit of simulations of the output-error fit per family.
+    close_loop : bool
+        After the fit, diagnose the residual against the effect catalogue, add effects
+        that improve BIC and test the final residual for whiteness (:mod:`hystdisc.closing`).
     """
 
     def __init__(
@@ -330,6 +333,7 @@ class Discovery:
         seed: int = 0,
         progress: Callable[[str], None] | None = None,
         max_nfev: int = 60,
+        close_loop: bool = True,
     ) -> None:
         self.experiment = experiment
         self.families = families
@@ -342,6 +346,7 @@ class Discovery:
         self.seed = seed
         self.progress = progress
         self.max_nfev = max_nfev
+        self.close_loop = close_loop
 
     # -- helpers
     def _say(self, msg: str) -> None:
@@ -464,6 +469,10 @@ class Discovery:
     # -- public API
     def fit(self, dataset: Dataset) -> Discovery:
         """Discover terms, fit the families and select one. Returns ``self``."""
+        with np.errstate(all="ignore"):
+            return self._fit(dataset)
+
+    def _fit(self, dataset: Dataset) -> Discovery:
         from hystdisc.results import build_results
 
         if not isinstance(dataset, Dataset):
@@ -521,14 +530,22 @@ class Discovery:
             par = FamilyParametrization(name, eq.experiment, start, fixed=fixed)
             fitter = OutputErrorFitter(fd, par, max_nfev=self.max_nfev)
             self.family_fits_[name] = fitter.fit(heldout=self.heldout)
-        # stage 2 of the discovered structure itself
-        self._say("stage 2: output-error fit of the discovered structure")
-        tpar = TermParametrization(
-            best.terms, best.shape, best.coefs, best.s, best.J, eq.experiment
-        )
-        self.discovered_fit_ = OutputErrorFitter(fd, tpar, max_nfev=self.max_nfev).fit(
-            heldout=False
-        )
+        # stage 2 of the discovered structure itself (a family's fit when it is one)
+        same = [
+            n
+            for n in self.family_fits_
+            if FAMILY_SHAPE[n] == best.shape
+            and set(FAMILIES[n].torque_terms) == set(best.terms) - {"theta"}
+        ]
+        if same:
+            self.discovered_fit_ = self.family_fits_[same[0]]
+        else:
+            self._say("stage 2: output-error fit of the discovered structure")
+            tpar = TermParametrization(
+                best.terms, best.shape, best.coefs, best.s, best.J, eq.experiment
+            )
+            fitter = OutputErrorFitter(fd, tpar, max_nfev=self.max_nfev)
+            self.discovered_fit_ = fitter.fit(heldout=False)
 
         # selection: lowest BIC; within EQUAL_FIT_BIC, fewest parameters wins
         bics = {n: f.bic for n, f in self.family_fits_.items()}
@@ -542,6 +559,11 @@ class Discovery:
         )
         self.declared_ = self.model is not None
         self.results_ = build_results(self, dataset)
+        if self.close_loop:
+            from hystdisc.closing import close_loop
+
+            self._say("closing the loop: residual -> catalogued effects")
+            close_loop(self, dataset)
         return self
 
     def _check_fitted(self):

@@ -46,6 +46,11 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--threshold", type=float, help="fixed STLSQ threshold (default: chosen by BIC)")
     p.add_argument("--ensemble", action="store_true", help="inclusion probabilities by bagging")
     p.add_argument("--no-heldout", action="store_true", help="skip leave-one-run-out errors")
+    p.add_argument(
+        "--no-effects",
+        action="store_true",
+        help="skip the closing loop (residual -> catalogued effects)",
+    )
     p.add_argument("--force", action="store_true", help="overwrite existing output files")
     p.add_argument("--quiet", action="store_true", help="no progress messages on stderr")
     return p
@@ -70,6 +75,7 @@ def run(args: argparse.Namespace) -> int:
         heldout=not args.no_heldout,
         seed=args.seed,
         progress=progress_printer(args.quiet),
+        close_loop=not args.no_effects,
     ).fit(data)
     res = disc.results_
     json_path.parent.mkdir(parents=True, exist_ok=True)
