@@ -35,6 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pysindy as ps
 from scipy.optimize import minimize
+from threadpoolctl import threadpool_limits
 
 from hystdisc.differentiation import differentiate
 from hystdisc.errors import HystdiscError, HystdiscWarning
@@ -117,7 +118,11 @@ def _lstsq(F, y):
     sc = np.sqrt((F**2).mean(axis=0))
     sc[sc == 0] = 1.0
     Fn = F / sc
-    c = np.linalg.lstsq(Fn.T @ Fn, Fn.T @ y, rcond=1e-13)[0] / sc
+    G = Fn.T @ Fn
+    try:
+        c = np.linalg.solve(G + 1e-12 * np.trace(G) * np.eye(G.shape[0]), Fn.T @ y) / sc
+    except np.linalg.LinAlgError:
+        c = np.linalg.lstsq(G, Fn.T @ y, rcond=1e-13)[0] / sc
     r = y - F @ c
     return c, float(r @ r)
 
@@ -469,7 +474,8 @@ class Discovery:
     # -- public API
     def fit(self, dataset: Dataset) -> Discovery:
         """Discover terms, fit the families and select one. Returns ``self``."""
-        with np.errstate(all="ignore"):
+        # small dense algebra on tall matrices: extra BLAS threads only add overhead
+        with np.errstate(all="ignore"), threadpool_limits(limits=1):
             return self._fit(dataset)
 
     def _fit(self, dataset: Dataset) -> Discovery:

@@ -17,7 +17,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from hystdisc.errors import HystdiscError
 from hystdisc.models import (
@@ -280,6 +279,77 @@ class TermParametrization(Parametrization):
 # ----------------------------------------------------------------------------- the fit
 
 
+def levenberg_marquardt(fun, jac, x0, lower, upper, max_iter=60, tol=1e-8):
+    """Bounded Levenberg-Marquardt on the normal equations (N >> p, so the p x p Gram matrix
+    is far cheaper than the SVD of the tall Jacobian that scipy's trust-region solvers use).
+
+    Steps are clipped to the bounds; Marquardt's diagonal scaling makes it scale-invariant.
+    Returns the solution, the number of Jacobian evaluations and whether it converged.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = np.linspace(0, 1, 50)
+    >>> fun = lambda p: p[0] * np.exp(-p[1] * t) - 2.0 * np.exp(-3.0 * t)
+    >>> jac = lambda p: np.column_stack([np.exp(-p[1] * t), -p[0] * t * np.exp(-p[1] * t)])
+    >>> x, n, ok = levenberg_marquardt(fun, jac, np.array([1.0, 1.0]), np.zeros(2), np.full(2, 9.0))
+    >>> np.round(x, 6).tolist(), ok
+    ([2.0, 3.0], True)
+    """
+    x = np.clip(np.asarray(x0, dtype=float), lower, upper)
+    r = fun(x)
+    if not np.all(np.isfinite(r)):
+        raise HystdiscError(
+            "the output-error fit cannot start: the model diverges at its starting parameters; "
+            "fix: check the data for motion and the starting parameters"
+        )
+    cost = float(r @ r)
+    lam = 1e-3
+    njev = 0
+    converged = False
+    for _ in range(max_iter):
+        J = jac(x)
+        njev += 1
+        A = J.T @ J
+        g = J.T @ r
+        d = np.diag(A).copy()
+        d[d <= 0] = 1.0
+        # variables held at a bound by the gradient are left out of the step (projection)
+        free = ~(((x <= lower) & (g > 0)) | ((x >= upper) & (g < 0)))
+        if not free.any():
+            converged = True
+            break
+        Af = A[np.ix_(free, free)]
+        gf = g[free]
+        improved = False
+        while lam < 1e12:
+            step = np.zeros_like(x)
+            try:
+                step[free] = -np.linalg.solve(Af + lam * np.diag(d[free]), gf)
+            except np.linalg.LinAlgError:
+                lam *= 10.0
+                continue
+            xn = np.clip(x + step, lower, upper)
+            rn = fun(xn)
+            cn = float(rn @ rn) if np.all(np.isfinite(rn)) else np.inf
+            if cn < cost:
+                rel = (cost - cn) / max(cost, 1e-300)
+                small = np.all(np.abs(xn - x) <= 1e-9 * (np.abs(x) + 1e-9))
+                x, r, cost = xn, rn, cn
+                lam = max(lam / 5.0, 1e-12)
+                improved = True
+                if rel < tol or small:
+                    converged = True
+                break
+            lam *= 8.0
+        if not improved:
+            converged = True  # no downhill step left: a (local) minimum
+            break
+        if converged:
+            break
+    return x, njev, converged
+
+
 @dataclass
 class OEFit:
     """Result of an output-error fit."""
@@ -393,25 +463,10 @@ class OutputErrorFitter:
         p0 = np.concatenate([self.par.x0, self.data.nuisance_start()])
         lo = np.concatenate([self.par.lower, np.full(self.nnu * self.data.n_runs, -np.inf)])
         hi = np.concatenate([self.par.upper, np.full(self.nnu * self.data.n_runs, np.inf)])
-        try:
-            sol = least_squares(
-                self.residuals,
-                p0,
-                jac=self.jacobian,
-                bounds=(lo, hi),
-                x_scale="jac",
-                method="trf",
-                max_nfev=self.max_nfev,
-                xtol=1e-10,
-                ftol=1e-10,
-                gtol=1e-10,
-            )
-        except ValueError as exc:  # non-finite start, etc.
-            raise HystdiscError(
-                f"output-error fit of {self.par.names} failed to start ({exc}); fix: check the "
-                "data for motion and the starting parameters"
-            ) from None
-        return self._finish(sol.x, sol.nfev, bool(sol.success), heldout)
+        v, nfev, ok = levenberg_marquardt(
+            self.residuals, self.jacobian, p0, lo, hi, max_iter=self.max_nfev
+        )
+        return self._finish(v, nfev, ok, heldout)
 
     def _finish(self, v, nfev, success, heldout) -> OEFit:
         x, nu = self._split(v)

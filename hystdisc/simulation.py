@@ -119,7 +119,7 @@ def _rate_stiffness(b, n, w, z):
 
 
 @numba.njit(cache=True)
-def _n_sub(c, b, n, J, th, w, z, h, eps, mech, u, ratio, min_sub):
+def _n_sub(c, b, n, J, th, w, z, h, eps, mech, u, ratio, min_sub, max_sub):
     dgdz, dgdw = _rate_stiffness(b, n, w, z)
     lam = dgdz  # already carries the |theta_dot| factor
     if mech:
@@ -138,12 +138,12 @@ def _n_sub(c, b, n, J, th, w, z, h, eps, mech, u, ratio, min_sub):
     m = int(math.ceil(h * lam / ratio))
     if m < min_sub:
         m = min_sub
-    if m > MAX_SUBSTEPS:
-        m = MAX_SUBSTEPS
+    if m > max_sub:
+        m = max_sub
     return m
 
 
-@numba.njit(cache=True, parallel=True)
+@numba.njit(cache=True)
 def _mech_batch(
     coef,
     bb,
@@ -159,6 +159,7 @@ def _mech_batch(
     eps,
     ratio,
     min_sub,
+    max_sub,
     th_out,
     w_out,
     z_out,
@@ -166,7 +167,7 @@ def _mech_batch(
 ):
     """RK4 for release/forced runs, concatenated with ``offsets``; one model per run."""
     nruns = offsets.shape[0] - 1
-    for r in numba.prange(nruns):
+    for r in range(nruns):
         c = coef[r]
         b = bb[r]
         n = nn[r]
@@ -184,7 +185,7 @@ def _mech_batch(
             h = t[k + 1] - t[k]
             ua = u[k]
             ub = u[k + 1] if hold == 0 else u[k]
-            m = _n_sub(c, b, n, J, th, w, z, h, eps, True, ua, ratio, min_sub)
+            m = _n_sub(c, b, n, J, th, w, z, h, eps, True, ua, ratio, min_sub, max_sub)
             hs = h / m
             for s in range(m):
                 fa = s / m
@@ -229,13 +230,13 @@ def _mech_batch(
                 break
 
 
-@numba.njit(cache=True, parallel=True)
+@numba.njit(cache=True)
 def _driven_batch(
-    coef, bb, nn, t, th_in, w_in, offsets, z0, eps, ratio, min_sub, tq_out, z_out, status
+    coef, bb, nn, t, th_in, w_in, offsets, z0, eps, ratio, min_sub, max_sub, tq_out, z_out, status
 ):
     """Integrate z under an imposed velocity (linear between samples) and return torque."""
     nruns = offsets.shape[0] - 1
-    for r in numba.prange(nruns):
+    for r in range(nruns):
         c = coef[r]
         b = bb[r]
         n = nn[r]
@@ -250,7 +251,7 @@ def _driven_batch(
             wa = w_in[k]
             wb = w_in[k + 1]
             wmax = max(abs(wa), abs(wb))
-            m = _n_sub(c, b, n, 1.0, 0.0, wmax, z, h, eps, False, 0.0, ratio, min_sub)
+            m = _n_sub(c, b, n, 1.0, 0.0, wmax, z, h, eps, False, 0.0, ratio, min_sub, max_sub)
             hs = h / m
             for s in range(m):
                 w1 = wa + (wb - wa) * (s / m)
@@ -331,6 +332,7 @@ def mech_batch(
     eps: float = SIGN_EPS,
     ratio: float = STEP_RATIO,
     min_sub: int = MIN_SUBSTEPS,
+    max_sub: int = MAX_SUBSTEPS,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Low-level batched release/forced simulation, one model per run (rows of ``coef``, ``b``).
 
@@ -355,6 +357,7 @@ def mech_batch(
         eps,
         ratio,
         min_sub,
+        max_sub,
         th,
         w,
         z,
@@ -375,6 +378,7 @@ def driven_batch(
     eps: float = SIGN_EPS,
     ratio: float = STEP_RATIO,
     min_sub: int = MIN_SUBSTEPS,
+    max_sub: int = MAX_SUBSTEPS,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Low-level batched driven simulation; returns flat ``torque, z`` and the status."""
     tq = np.empty_like(t)
@@ -392,6 +396,7 @@ def driven_batch(
         eps,
         ratio,
         min_sub,
+        max_sub,
         tq,
         z,
         status,

@@ -60,6 +60,7 @@ __all__ = [
     "generate_from_scenario",
     "load_scenario",
     "make_input",
+    "normalize_scenario",
     "parse_drive",
     "round_significant",
     "scenario_model",

@@ -12,7 +12,6 @@ Examples::
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -28,15 +27,6 @@ from hystdisc.synth import (
 )
 
 HELP = "write a synthetic dataset of a known model (long CSV)"
-
-
-def _one_line_error(prog: str):
-    def error(message: str) -> None:  # replaces argparse's usage + message
-        msg = " ".join(str(message).split())
-        print(f"hystdisc: error: {prog}: {msg}; fix: see hystdisc {prog} --help", file=sys.stderr)
-        sys.exit(2)
-
-    return error
 
 
 def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -107,7 +97,6 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", metavar="FILE", help="output CSV (folder with --regenerate)")
     p.add_argument("--force", action="store_true", help="overwrite existing output")
     p.add_argument("--quiet", action="store_true", help="print nothing on success")
-    p.error = _one_line_error("simulate")  # type: ignore[method-assign]
     return p
 
 

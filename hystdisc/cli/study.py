@@ -11,7 +11,7 @@ import argparse
 import io
 from pathlib import Path
 
-from hystdisc.cli.simulate import _float, _int, _one_line_error, parse_assignments, parse_effect
+from hystdisc.cli.simulate import _float, _int, parse_assignments, parse_effect
 from hystdisc.errors import HystdiscError
 from hystdisc.io import atomic_write_bytes
 from hystdisc.models import FAMILIES
@@ -49,7 +49,6 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", required=True, metavar="FILE", help="figure (.png/.pdf/.svg)")
     p.add_argument("--force", action="store_true", help="overwrite an existing figure")
     p.add_argument("--quiet", action="store_true", help="print nothing on success")
-    p.error = _one_line_error("study")  # type: ignore[method-assign]
     return p
 
 
