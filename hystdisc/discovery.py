@@ -157,6 +157,7 @@ def _varpro(eq: EqData, shape_name: str, terms: Sequence[str], s0=None):
         return np.zeros(0), c, rss
 
     def obj(s):
+        s = shape.clip(s, eq.scale)
         with np.errstate(all="ignore"):
             zl = eq.z_list(shape, s)
             if (
@@ -174,9 +175,9 @@ def _varpro(eq: EqData, shape_name: str, terms: Sequence[str], s0=None):
         lambda s: np.log(obj(s)),
         best,
         method="Nelder-Mead",
-        options={"xatol": 1e-4, "fatol": 1e-7, "maxiter": 200 * len(best)},
+        options={"xatol": 1e-4, "fatol": 1e-7, "maxiter": 120 * len(best)},
     )
-    s = res.x if res.fun <= np.log(min(vals)) else best
+    s = shape.clip(res.x if res.fun <= np.log(min(vals)) else best, eq.scale)
     F, y = eq.design(terms, eq.z_list(shape, s))
     c, rss = _lstsq(F, y)
     return s, c, rss

@@ -32,6 +32,9 @@ from hystdisc.simulation import N_BASE, base_coefficients, driven_batch, mech_ba
 Z95 = 1.959963984540054
 #: Sub-step ratio used while fitting (errors ~1e-6 of the signal, far below any noise).
 FIT_RATIO = 0.4
+#: Sub-step cap while fitting: a candidate with a near-discontinuous state (a Dahl rate
+#: fitted to Bingham data) is not worth resolving exactly inside the optimizer.
+FIT_MAX_SUB = 16
 
 
 # ----------------------------------------------------------------------------- data
@@ -113,7 +116,17 @@ def simulate_entries(
             th = np.concatenate([data.theta[r] for r in runs])
             w = np.concatenate([data.theta_dot[r] for r in runs])
             out, _, status = driven_batch(
-                coef, b, n, t, th, w, offsets, np.zeros(ne), ratio=FIT_RATIO, min_sub=1
+                coef,
+                b,
+                n,
+                t,
+                th,
+                w,
+                offsets,
+                np.zeros(ne),
+                ratio=FIT_RATIO,
+                min_sub=1,
+                max_sub=FIT_MAX_SUB,
             )
         else:
             u = np.concatenate([data.u[r] for r in runs])
@@ -133,6 +146,7 @@ def simulate_entries(
                 hold=data.hold,
                 ratio=FIT_RATIO,
                 min_sub=1,
+                max_sub=FIT_MAX_SUB,
             )
     res = [out[offsets[e] : offsets[e + 1]] for e in range(ne)]
     for e in range(ne):

@@ -124,6 +124,19 @@ class HysteresisShape:
                     out.append(np.array([r, phi, np.log(n)]))
         return out
 
+    def clip(self, s: np.ndarray, scale: float) -> np.ndarray:
+        """Keep shape constants in the searched box (rates 0.1..300 per amplitude ``scale``;
+        beyond it z is a sign function, which the Bingham terms already cover)."""
+        s = np.asarray(s, dtype=float).copy()
+        if self.name == "none":
+            return s
+        lo = np.log(0.1 / max(scale, 1e-12))
+        s[0] = np.clip(s[0], lo, lo + np.log(3e3))
+        if self.name != "dahl":
+            s[1] = np.clip(s[1], -3.0, 3.0)
+            s[2] = np.clip(s[2], np.log(N_RANGE[0]), np.log(N_RANGE[1]))
+        return s
+
     def shape_dict(self, s: np.ndarray) -> dict[str, float]:
         """Shape constants in physical units (``rho`` or ``delta, beta, gamma, n``)."""
         if self.name == "none":

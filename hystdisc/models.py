@@ -669,5 +669,8 @@ class Model:
 
     def __repr__(self) -> str:
         ps = ", ".join(f"{k}={v:g}" for k, v in self.params.items())
-        eff = "".join(f" + {k}" for k in self.effects)
+        eff = "".join(
+            f" + {k}({', '.join(f'{pk}={pv:g}' for pk, pv in ep.items())})"
+            for k, ep in self.effects.items()
+        )
         return f"Model({self.family.name}{eff}: {ps})"

@@ -230,6 +230,40 @@ def _mech_batch(
                 break
 
 
+@numba.njit(cache=True, inline="always")
+def _z_rk4(b, n, z, wa, wb, fa, fc, h):
+    """One RK4 step of z from fraction fa to fc of a sample interval (velocity linear)."""
+    hs = h * (fc - fa)
+    w1 = wa + (wb - wa) * fa
+    w2 = wa + (wb - wa) * (0.5 * (fa + fc))
+    w3 = wa + (wb - wa) * fc
+    k1z = _rate(b, n, w1, z)
+    k2z = _rate(b, n, w2, z + 0.5 * hs * k1z)
+    k3z = _rate(b, n, w2, z + 0.5 * hs * k2z)
+    k4z = _rate(b, n, w3, z + hs * k3z)
+    return z + hs / 6.0 * (k1z + 2.0 * k2z + 2.0 * k3z + k4z)
+
+
+@numba.njit(cache=True)
+def _z_segment(b, n, z, wa, wb, f0, f1, h, m):
+    """RK4 for z over the fraction [f0, f1] of a sample interval, velocity linear in time.
+
+    A sub-step in which z changes sign is redone in two parts split at the (secant) zero
+    of z, since the |z|^n terms have a kink there.
+    """
+    kinked = b[2] != 0.0 or b[3] != 0.0 or b[4] != 0.0
+    for s in range(m):
+        fa = f0 + (f1 - f0) * (s / m)
+        fc = f0 + (f1 - f0) * ((s + 1.0) / m)
+        zn = _z_rk4(b, n, z, wa, wb, fa, fc, h)
+        if kinked and z * zn < 0.0:
+            fm = fa + (fc - fa) * (z / (z - zn))
+            z1 = _z_rk4(b, n, z, wa, wb, fa, fm, h)
+            zn = _z_rk4(b, n, z1, wa, wb, fm, fc, h)
+        z = zn
+    return z
+
+
 @numba.njit(cache=True)
 def _driven_batch(
     coef, bb, nn, t, th_in, w_in, offsets, z0, eps, ratio, min_sub, max_sub, tq_out, z_out, status
@@ -252,16 +286,13 @@ def _driven_batch(
             wb = w_in[k + 1]
             wmax = max(abs(wa), abs(wb))
             m = _n_sub(c, b, n, 1.0, 0.0, wmax, z, h, eps, False, 0.0, ratio, min_sub, max_sub)
-            hs = h / m
-            for s in range(m):
-                w1 = wa + (wb - wa) * (s / m)
-                w2 = wa + (wb - wa) * ((s + 0.5) / m)
-                w3 = wa + (wb - wa) * ((s + 1.0) / m)
-                k1z = _rate(b, n, w1, z)
-                k2z = _rate(b, n, w2, z + 0.5 * hs * k1z)
-                k3z = _rate(b, n, w2, z + 0.5 * hs * k2z)
-                k4z = _rate(b, n, w3, z + hs * k3z)
-                z += hs / 6.0 * (k1z + 2.0 * k2z + 2.0 * k3z + k4z)
+            if wa * wb < 0.0:
+                # |theta_dot| has a kink where the velocity reverses: split the interval there
+                f = wa / (wa - wb)
+                z = _z_segment(b, n, z, wa, wb, 0.0, f, h, m)
+                z = _z_segment(b, n, z, wa, wb, f, 1.0, h, m)
+            else:
+                z = _z_segment(b, n, z, wa, wb, 0.0, 1.0, h, m)
             z_out[k + 1] = z
             tq_out[k + 1] = _torque(c, th_in[k + 1], w_in[k + 1], z, eps)
             if not abs(z) < 1e12:
