@@ -175,7 +175,7 @@ def _varpro(eq: EqData, shape_name: str, terms: Sequence[str], s0=None):
         lambda s: np.log(obj(s)),
         best,
         method="Nelder-Mead",
-        options={"xatol": 1e-4, "fatol": 1e-7, "maxiter": 120 * len(best)},
+        options={"xatol": 1e-3, "fatol": 1e-6, "maxiter": 80 * len(best)},
     )
     s = shape.clip(res.x if res.fun <= np.log(min(vals)) else best, eq.scale)
     F, y = eq.design(terms, eq.z_list(shape, s))
@@ -338,7 +338,7 @@ class Discovery:
         heldout: bool = True,
         seed: int = 0,
         progress: Callable[[str], None] | None = None,
-        max_nfev: int = 60,
+        max_nfev: int = 40,
         close_loop: bool = True,
     ) -> None:
         self.experiment = experiment

@@ -34,7 +34,7 @@ Z95 = 1.959963984540054
 FIT_RATIO = 0.4
 #: Sub-step cap while fitting: a candidate with a near-discontinuous state (a Dahl rate
 #: fitted to Bingham data) is not worth resolving exactly inside the optimizer.
-FIT_MAX_SUB = 16
+FIT_MAX_SUB = 8
 
 
 # ----------------------------------------------------------------------------- data
@@ -95,9 +95,17 @@ class FitData:
 
 
 def simulate_entries(
-    data: FitData, models: list[TermModel], runs: list[int], nuis: list[np.ndarray]
+    data: FitData,
+    models: list[TermModel],
+    runs: list[int],
+    nuis: list[np.ndarray],
+    status_out: list | None = None,
 ) -> list[np.ndarray]:
-    """Simulate (model, run) pairs in one compiled call; return the predicted outputs."""
+    """Simulate (model, run) pairs in one compiled call; return the predicted outputs.
+
+    A diverged entry is returned with its non-finite samples replaced by 1e6 (a large,
+    finite residual the optimizer backs away from); ``status_out`` receives the flags.
+    """
     ne = len(runs)
     coef = np.empty((ne, N_BASE))
     b = np.empty((ne, 5))
@@ -149,9 +157,14 @@ def simulate_entries(
                 max_sub=FIT_MAX_SUB,
             )
     res = [out[offsets[e] : offsets[e + 1]] for e in range(ne)]
+    bad = []
     for e in range(ne):
-        if status[e] or not np.all(np.isfinite(res[e])):
+        diverged = bool(status[e]) or not np.all(np.isfinite(res[e]))
+        if diverged:
             res[e] = np.where(np.isfinite(res[e]), res[e], 1e6)
+        bad.append(diverged)
+    if status_out is not None:
+        status_out.extend(bad)
     return res
 
 
@@ -293,7 +306,7 @@ class TermParametrization(Parametrization):
 # ----------------------------------------------------------------------------- the fit
 
 
-def levenberg_marquardt(fun, jac, x0, lower, upper, max_iter=60, tol=1e-8):
+def levenberg_marquardt(fun, jac, x0, lower, upper, max_iter=60, tol=1e-6):
     """Bounded Levenberg-Marquardt on the normal equations (N >> p, so the p x p Gram matrix
     is far cheaper than the SVD of the tall Jacobian that scipy's trust-region solvers use).
 
@@ -570,6 +583,8 @@ class OutputErrorFitter:
         )
         if heldout and self.data.n_runs >= 2:
             fit.heldout_rms, fit.heldout_predictions = self._heldout(v, res, Jm)
+            if fit.heldout_rms is None:
+                fit.notes.append(self.heldout_note)
         return fit
 
     def _heldout(self, v, res, Jm):
@@ -596,7 +611,14 @@ class OutputErrorFitter:
             vr[cols] += delta
             xr = np.clip(vr[: self.npar], self.par.lower, self.par.upper)
             tm = self.par.terms(xr)
-            pr = simulate_entries(self.data, [tm], [r], [nu[r]])[0]
+            st: list = []
+            pr = simulate_entries(self.data, [tm], [r], [nu[r]], st)[0]
+            if st[0]:
+                self.heldout_note = (
+                    f"the held-out prediction of run {self.data.names[r]} diverged: the fit "
+                    "without that run is unstable there (held-out RMS not reported)"
+                )
+                return None, None
             e = (pr - self.data.y[r])[self.masks[r]]
             sq += float(e @ e)
             cnt += e.size

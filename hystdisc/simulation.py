@@ -92,7 +92,12 @@ def _rate(b, n, w, z):
     r = b[0] * w + b[1] * aw * z
     if b[2] != 0.0 or b[3] != 0.0 or b[4] != 0.0:
         az = abs(z)
-        p = az**n if az > 0.0 else 0.0
+        if n == 1.0:
+            p = az
+        elif n == 2.0:
+            p = az * az
+        else:
+            p = az**n if az > 0.0 else 0.0
         r += b[2] * w * p + b[3] * aw * z * p
         if b[4] != 0.0:
             if z > 0.0:
@@ -458,6 +463,7 @@ def integrate_z(
         eps,
         ratio=0.4,
         min_sub=1,
+        max_sub=8,
     )
     return [z[offsets[k] : offsets[k + 1]] for k in range(nr)]
 
