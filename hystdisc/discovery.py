@@ -80,6 +80,11 @@ class EqData:
     window: int = 1
     scale: float = 1.0  # displacement amplitude
 
+    @property
+    def yy(self) -> float:
+        """Sum of squares of the regression target over the rows used."""
+        return float(sum(np.sum(y[m] ** 2) for y, m in zip(self.target, self.rows, strict=True)))
+
     def z_list(self, shape, s) -> list[np.ndarray]:
         b, n = shape.vector(s)
         if shape.name == "none":
@@ -111,6 +116,13 @@ class EqData:
         if self.experiment == "driven":
             return float(n)
         return float(n) * 2.0 / max(self.window, 2)
+
+
+def _samples_per_cycle(w: np.ndarray) -> float:
+    """Samples per cycle of a velocity record (from its zero crossings)."""
+    sgn = np.signbit(w)
+    crossings = np.count_nonzero(sgn[1:] != sgn[:-1])
+    return 2.0 * w.size / max(crossings, 1)
 
 
 def _lstsq(F, y):
@@ -189,9 +201,15 @@ def _coef_dict(eq: EqData, terms, c):
     return {t: float(v) for t, v in zip(terms, c[off:], strict=True)}, J
 
 
+#: Equation-error fits better than this (relative RSS; 1e-4 relative RMS) are equally exact:
+#: on clean data the residual is differentiation error (~1e-10), which extra terms would soak up.
+EQ_RSS_FLOOR = 1e-8
+
+
 def _eq_bic(eq, rss, n, k):
     ne = eq.n_eff(n)
-    return float(ne * np.log(max(rss, 1e-300) / n) + k * np.log(ne))
+    floor = EQ_RSS_FLOOR * eq.yy
+    return float(ne * np.log(max(rss, floor, 1e-300) / n) + k * np.log(ne))
 
 
 def fit_shape(
@@ -432,7 +450,11 @@ class Discovery:
         scale = float(np.median([np.ptp(th) / 2 for th in eq_th])) or 1.0
         # the smoothed signals are band-limited by the window: decimate the equation-error
         # stage (z is still integrated with sub-steps on the decimated grid)
-        q = max(1, int(np.median(windows)) // 16) if exp != "driven" else 1
+        q = max(1, int(np.median(windows)) // 16)
+        if exp == "driven":
+            # torque is not differentiated; keep ~200 samples per cycle of the motion
+            per_cycle = np.median([_samples_per_cycle(w) for w in eq_w])
+            q = max(1, int(per_cycle // 200))
         dec = lambda xs: [x[::q] for x in xs]  # noqa: E731
         eq = EqData(
             exp,
