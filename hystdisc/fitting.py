@@ -210,13 +210,25 @@ class FamilyParametrization(Parametrization):
         start: dict[str, float],
         effects: tuple[str, ...] = (),
         fixed: dict[str, float] | None = None,
+        normalization: str = "z_sat",
     ) -> None:
         self.family = get_family(family) if isinstance(family, str) else family
         self.fixed = dict(fixed or {})
+        bw = self.family.name.startswith("bouc-wen")
+        if normalization not in ("z_sat", "alpha_1"):
+            raise HystdiscError(
+                f"unknown normalization '{normalization}'; fix: use z_sat or alpha_1"
+            )
+        if bw and normalization == "alpha_1":
+            # z in torque units (alpha_1 = 1), delta free: for loops that never saturate
+            self.fixed.setdefault("alpha_1", 1.0)
         self.experiment = experiment
         self.effects = tuple(effects)
-        self.derived = ["delta"] if self.family.name.startswith("bouc-wen") else []
-        self.normalization = self.family.normalization
+        self.derived = ["delta"] if bw and normalization == "z_sat" else []
+        self.normalization = (
+            "alpha_1 = 1 (z in torque units)" if bw and normalization == "alpha_1"
+            else self.family.normalization
+        )
         specs: list[Param] = [
             p for p in self.family.params if p.name not in self.derived and p.name not in self.fixed
         ]

@@ -1,0 +1,115 @@
+"""``hystdisc report``: discover the model of the data and write the model-comparison report.
+
+One self-contained HTML file (figures embedded, opens offline) and a Markdown summary of
+its tables beside it (``report.html`` -> ``report.md``).
+
+Examples::
+
+    hystdisc report data_synth/bouc-wen.csv -o report.html
+    hystdisc report run.csv --model dahl -o dahl.html --force --quiet
+    hystdisc report ../shared/data/utfsm_mr_damper --rig rig.toml --families dahl,bouc-wen
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from hystdisc.cli.common import add_data_options, load_data, progress_printer
+from hystdisc.discovery import ALL_FAMILIES, Discovery
+from hystdisc.errors import HystdiscError
+from hystdisc.models import FAMILIES
+
+HELP = "discover the model and write an HTML model-comparison report (+ Markdown summary)"
+
+
+def add_parser(sub) -> argparse.ArgumentParser:
+    """Register ``hystdisc report``."""
+    p = sub.add_parser(
+        "report",
+        help=HELP,
+        description=(
+            "Run the discovery (as hystdisc discover) and write one self-contained HTML "
+            "report: data, measured against simulated output, hysteresis loops per current, "
+            "the family table, parameters with 95 % intervals, the seed's term "
+            "correspondence, the term-selection path and the closing loop. A Markdown "
+            "summary of the tables is written beside it (same name, .md)."
+        ),
+    )
+    p.add_argument(
+        "files", nargs="+", metavar="FILE", help="data files or folders (CSV, .mat, tables)"
+    )
+    p.add_argument(
+        "-o",
+        "--output",
+        default="report.html",
+        metavar="PATH",
+        help="HTML report (default: report.html; the summary goes to PATH with .md)",
+    )
+    p.add_argument(
+        "--model", help=f"declare the family instead of selecting one: {', '.join(FAMILIES)}"
+    )
+    p.add_argument(
+        "--families",
+        metavar="LIST",
+        help=f"families to compare, comma separated (default: {','.join(ALL_FAMILIES)})",
+    )
+    add_data_options(p)
+    p.add_argument("--seed", type=int, default=0, help="seed of the resampling (default 0)")
+    p.add_argument("--ensemble", action="store_true", help="inclusion probabilities by bagging")
+    p.add_argument("--no-heldout", action="store_true", help="skip leave-one-run-out errors")
+    p.add_argument(
+        "--no-effects",
+        action="store_true",
+        help="skip the closing loop (residual -> catalogued effects)",
+    )
+    p.add_argument(
+        "--max-runs",
+        type=int,
+        default=5,
+        metavar="N",
+        help="runs drawn in the per-run figures, one per current first (default 5)",
+    )
+    p.add_argument("--no-markdown", action="store_true", help="do not write the .md summary")
+    p.add_argument("--force", action="store_true", help="overwrite existing report files")
+    p.add_argument("--quiet", action="store_true", help="no progress messages on stderr")
+    return p
+
+
+def run(args: argparse.Namespace) -> int:
+    """Execute ``hystdisc report``."""
+    from hystdisc.report import check_report_path, markdown_path, write_report
+
+    out = Path(args.output)
+    markdown = not args.no_markdown
+    check_report_path(out, args.force, markdown)
+    if args.max_runs < 1:
+        raise HystdiscError(f"--max-runs {args.max_runs} is below 1; fix: give 1 or more")
+    data = load_data(args, args.files)
+    families = None
+    if args.families:
+        families = [f.strip() for f in args.families.split(",") if f.strip()]
+    say = progress_printer(args.quiet)
+    disc = Discovery(
+        experiment=args.experiment,
+        families=families,
+        model=args.model,
+        ensemble=args.ensemble,
+        heldout=not args.no_heldout,
+        seed=args.seed,
+        progress=say,
+        close_loop=not args.no_effects,
+    ).fit(data)
+    path = write_report(
+        disc,
+        data,
+        out,
+        force=args.force,
+        markdown=markdown,
+        max_runs=args.max_runs,
+        progress=say,
+    )
+    if not args.quiet:
+        extra = f" and {markdown_path(path)}" if markdown else ""
+        print(f"wrote {path}{extra} (family: {disc.family_})")
+    return 0

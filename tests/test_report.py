@@ -1,0 +1,276 @@
+"""The HTML model-comparison report, its Markdown summary and ``hystdisc report``."""
+
+from __future__ import annotations
+
+import base64
+import binascii
+from html.parser import HTMLParser
+from pathlib import Path
+
+import pytest
+
+from hystdisc.cli import main
+from hystdisc.discovery import Discovery
+from hystdisc.errors import HystdiscError
+from hystdisc.models import Model
+from hystdisc.report import SECTIONS, model_loops, write_report
+from hystdisc.synth import generate, write_dataset
+
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+NASTY = 'synthetic <script>alert("x")</script> & "q"'
+
+
+class _Scan(HTMLParser):
+    """Collects what a test needs to know about an HTML document."""
+
+    def __init__(self) -> None:
+        super().__init__(convert_charrefs=True)
+        self.h2_ids: list[str] = []
+        self.images: list[str] = []
+        self.tags: set[str] = set()
+        self.urls: list[str] = []
+        self.text: list[str] = []
+
+    def handle_starttag(self, tag, attrs):
+        self.tags.add(tag)
+        a = dict(attrs)
+        if tag == "h2" and a.get("id"):
+            self.h2_ids.append(a["id"])
+        if tag == "img":
+            self.images.append(a.get("src") or "")
+        for k, v in attrs:
+            if k in ("src", "href", "action", "data", "poster", "srcset") and v:
+                if not v.startswith(("data:", "#")):
+                    self.urls.append(v)
+            if v and k == "style" and "url(" in v:
+                self.urls.append(v)
+
+    def handle_data(self, data):
+        self.text.append(data)
+
+
+def _scan(text: str) -> _Scan:
+    s = _Scan()
+    s.feed(text)
+    s.close()
+    return s
+
+
+def _decode_png(src: str) -> bytes:
+    prefix = "data:image/png;base64,"
+    assert src.startswith(prefix), src[:40]
+    try:
+        raw = base64.b64decode(src[len(prefix) :], validate=True)
+    except binascii.Error as exc:  # pragma: no cover - the assertion message
+        raise AssertionError(f"broken base64 image: {exc}") from None
+    return raw
+
+
+@pytest.fixture(scope="module")
+def families_report(tmp_path_factory):
+    """Several families compared on Dahl data (3 currents, 3 s), held-out errors on."""
+    data = generate(Model("dahl"), currents=(0, 0.5, 1), duration=3.0, noise=1e-3, seed=1)
+    data.source = NASTY  # every user string must arrive escaped
+    disc = Discovery(families=["bingham", "dahl", "lugre"], heldout=True).fit(data)
+    path = tmp_path_factory.mktemp("rep") / "report.html"
+    out = write_report(disc, data, path, dpi=50, max_runs=3)
+    return disc, data, out
+
+
+@pytest.fixture(scope="module")
+def effect_report(tmp_path_factory):
+    """Dahl declared on Dahl + current_viscous data: the closing loop accepts the effect."""
+    truth = Model("dahl", effects={"current_viscous": {"c_i": 0.6}})
+    data = generate(truth, currents=(0, 0.5, 1), duration=3.0, noise=1e-3, seed=3)
+    disc = Discovery(model="dahl", heldout=False).fit(data)
+    path = tmp_path_factory.mktemp("rep") / "effect.html"
+    out = write_report(disc, data, path, dpi=50, max_runs=2)
+    return disc, data, out
+
+
+def test_every_section_is_present(families_report):
+    _, _, path = families_report
+    scan = _scan(path.read_text(encoding="utf-8"))
+    assert [sid for sid, _ in SECTIONS] == [i for i in scan.h2_ids if i in dict(SECTIONS)]
+    assert len(set(scan.h2_ids)) == len(scan.h2_ids)
+
+
+def test_images_are_embedded_valid_pngs(families_report):
+    _, _, path = families_report
+    scan = _scan(path.read_text(encoding="utf-8"))
+    # data, time series, loops, family comparison, selection path, residual spectrum
+    assert len(scan.images) >= 6
+    for src in scan.images:
+        raw = _decode_png(src)
+        assert raw.startswith(PNG_MAGIC)
+        assert raw.endswith(b"IEND\xaeB`\x82")  # complete, not truncated
+        assert len(raw) > 1000
+
+
+def test_self_contained_and_escaped(families_report):
+    _, _, path = families_report
+    text = path.read_text(encoding="utf-8")
+    scan = _scan(text)
+    assert scan.urls == []
+    assert not scan.tags & {"script", "link", "iframe", "object", "embed"}
+    visible = "".join(scan.text)
+    assert "http" not in visible
+    assert "<style>" in text  # inline CSS
+    # the dataset name with markup shows up as text, not as markup
+    assert NASTY in visible
+    assert "<script>alert" not in text
+
+
+def test_report_content(families_report):
+    disc, _, path = families_report
+    text = "".join(_scan(path.read_text(encoding="utf-8")).text)
+    for name in disc.family_fits_:
+        assert name in text
+    # the seed's correspondence rows with the fitted Dahl and LuGre parameters
+    for key in ("k_x = ", "k_wa = ", "k_wb = ", "sigma_2 = ", "sigma_a = ", "sigma_0 = "):
+        assert key in text
+    assert "held-out RMS" in text
+    assert "No effect was accepted." in text
+    assert "whiteness p" in text
+
+
+def test_markdown_summary(families_report):
+    disc, _, path = families_report
+    md = path.with_suffix(".md").read_text(encoding="utf-8")
+    assert md.startswith("# hystdisc report")
+    assert "| family | params | RMS |" in md
+    for name in disc.family_fits_:
+        mark = " *" if name == disc.family_ else ""
+        assert f"| {name}{mark} |" in md
+    assert "## Term correspondence" in md
+    assert "\\|theta_dot\\|" in md  # table cells with pipes are escaped
+    assert "data:image" not in md
+
+
+def test_accepted_effect_is_reported(effect_report):
+    disc, _, path = effect_report
+    assert disc.results_.effects, "the closing loop should accept current_viscous here"
+    scan = _scan(path.read_text(encoding="utf-8"))
+    text = "".join(scan.text)
+    assert "current_viscous" in text
+    assert "Accepted effects" in text
+    assert "dahl + current_viscous" in text  # the final model drawn beside the families
+    md = path.with_suffix(".md").read_text(encoding="utf-8")
+    assert "### Accepted effects" in md and "c_i" in md
+    for src in scan.images:
+        assert _decode_png(src).startswith(PNG_MAGIC)
+
+
+def test_model_loops_release(effect_report):
+    disc, _, _ = effect_report
+    loops = model_loops(disc, runs=[0])
+    kinds = [lp["kind"] for lp in loops]
+    assert kinds[0] == "data" and "dahl" in kinds and "final" in kinds
+    for lp in loops:
+        assert len(lp["theta"]) == len(lp["torque"]) == len(lp["theta_dot"])
+
+
+def test_refuses_to_overwrite(families_report, tmp_path):
+    disc, data, path = families_report
+    before = path.read_bytes()
+    with pytest.raises(HystdiscError, match="already exists; fix: pass --force") as err:
+        write_report(disc, data, path)
+    assert "\n" not in str(err.value)
+    assert path.read_bytes() == before
+    # the Markdown file alone also blocks
+    other = tmp_path / "r.html"
+    other.with_suffix(".md").write_text("mine\n")
+    with pytest.raises(HystdiscError, match="r.md: already exists"):
+        write_report(disc, data, other)
+    assert not other.exists()
+    with pytest.raises(HystdiscError, match="ending in .html"):
+        write_report(disc, data, tmp_path / "x.md")
+
+
+def test_force_and_no_markdown(families_report, tmp_path):
+    disc, data, _ = families_report
+    target = tmp_path / "only.html"
+    target.write_text("old")
+    out = write_report(disc, data, target, force=True, markdown=False, dpi=40, max_runs=1)
+    assert out == target and target.read_text().startswith("<!DOCTYPE html>")
+    assert not target.with_suffix(".md").exists()
+
+
+def test_unfitted_discovery_is_a_one_line_error(tmp_path):
+    data = generate("dahl", currents=(0, 1), duration=1.0)
+    with pytest.raises(HystdiscError, match="not fitted"):
+        write_report(Discovery(), data, tmp_path / "r.html")
+
+
+# ----------------------------------------------------------------------------- CLI
+
+
+@pytest.fixture(scope="module")
+def csv_file(tmp_path_factory) -> Path:
+    data = generate(Model("dahl"), currents=(0, 0.5, 1), duration=3.0, noise=1e-3, seed=4)
+    path = tmp_path_factory.mktemp("csv") / "dahl.csv"
+    write_dataset(data, path)
+    return path
+
+
+def test_cli_report(csv_file, tmp_path, capsys):
+    out = tmp_path / "r.html"
+    argv = ["report", str(csv_file), "-o", str(out), "--families", "dahl,bingham"]
+    code = main([*argv, "--no-heldout", "--max-runs", "2"])
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    assert out.exists() and out.with_suffix(".md").exists()
+    assert "wrote" in captured.out
+    assert "stage 2" in captured.err  # progress on stderr
+    scan = _scan(out.read_text(encoding="utf-8"))
+    assert {sid for sid, _ in SECTIONS} <= set(scan.h2_ids)
+    # refuses to overwrite, before any work, with one line and exit status 2
+    code = main(argv)
+    captured = capsys.readouterr()
+    assert code == 2
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1 and "already exists" in lines[0] and "--force" in lines[0]
+    assert "stage" not in captured.err
+
+
+def test_cli_report_quiet_force(csv_file, tmp_path, capsys):
+    out = tmp_path / "r.html"
+    out.write_text("old")
+    code = main(
+        [
+            "report",
+            str(csv_file),
+            "-o",
+            str(out),
+            "--model",
+            "dahl",
+            "--no-heldout",
+            "--no-effects",
+            "--max-runs",
+            "1",
+            "--force",
+            "--quiet",
+        ]
+    )
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    assert captured.out == "" and captured.err == ""
+    text = out.read_text(encoding="utf-8")
+    assert "The closing loop was not run" in text and "No effect was accepted." in text
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["missing.csv"], "does not exist"),
+        (["{csv}", "-o", "{tmp}/r.md"], "ending in .html"),
+        (["{csv}", "-o", "{tmp}"], "is a directory"),
+        (["{csv}", "--max-runs", "0", "-o", "{tmp}/a.html"], "--max-runs"),
+    ],
+)
+def test_cli_report_errors(csv_file, tmp_path, capsys, args, message):
+    argv = [a.format(csv=csv_file, tmp=tmp_path) for a in args]
+    code = main(["report", *argv])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2
+    assert len(err) == 1 and message in err[0]
