@@ -237,7 +237,8 @@ def fit_shape(
     thresholds = [threshold] if threshold is not None else list(np.geomspace(1e-4, 0.5, 24))
     path = []
     best = None
-    for th in [0.0, *thresholds]:
+    # a fixed threshold is used as given; otherwise the whole path (from plain least squares)
+    for th in thresholds if threshold is not None else [0.0, *thresholds]:
         opt = ps.STLSQ(threshold=th, alpha=1e-10, max_iter=50, unbias=True)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -476,7 +477,9 @@ class Discovery:
         if self.single_current_:
             ft = [t for t in ft if not t.startswith("i")]
         shape = FAMILY_SHAPE[name]
-        terms = ["theta", *ft]
+        # the constant column keeps an offset in the data from corrupting the start (z,
+        # integrated from 0, would imitate it); the family itself has no constant
+        terms = ["theta", "1", *ft] if eq.experiment != "driven" else ["theta", *ft]
         s, c, _ = _varpro(eq, shape, terms)
         coefs, J = _coef_dict(eq, terms, c)
         b, n = SHAPES[shape].vector(s)
@@ -605,11 +608,17 @@ class Discovery:
         return self.family_fits_[self.family_]
 
     def predict(self, dataset: Dataset, family: str | None = None) -> list[np.ndarray]:
-        """Simulate the fitted model on the runs of ``dataset`` (see :func:`predict_dataset`)."""
+        """Simulate the fitted model on the runs of ``dataset``.
+
+        Without ``family``: the selected family with the effects the closing loop accepted.
+        """
         self._check_fitted()
         from hystdisc.predict import predict_dataset
 
-        fit = self.family_fits_[family or self.family_]
+        if family is None and getattr(self, "final_fit_", None) is not None:
+            fit = self.final_fit_  # the selected family with its accepted effects
+        else:
+            fit = self.family_fits_[family or self.family_]
         return predict_dataset(fit.term_model, dataset, self.experiment_)
 
     def score(self, dataset: Dataset) -> float:

@@ -404,11 +404,12 @@ class BoucWen(Family):
             return delta - beta * s**n - gamma * s ** (n + 1 if self.name == "bouc-wen" else n)
 
         hi = 1.0
-        for _ in range(200):
-            if f(hi) < 0:
-                break
-            hi *= 2.0
-        else:
+        try:
+            while f(hi) >= 0:
+                hi *= 2.0
+                if hi > 1e12:
+                    return float("inf")  # no saturation (e.g. beta + gamma <= 0)
+        except OverflowError:
             return float("inf")
         return float(brentq(f, 0.0, hi, xtol=1e-14, rtol=1e-12))
 

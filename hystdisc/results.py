@@ -157,6 +157,81 @@ class Results:
             rows.append(f"  note: {note}")
         return "\n".join(rows)
 
+    def effects_table(self) -> list[str]:
+        """Lines of the closing-the-loop table: every refitted effect, then the verdict.
+
+        Returns
+        -------
+        list of str
+            Empty when the loop did not run.
+        """
+        d = self._data
+        if "diagnosis" not in d and not d.get("effects_tried"):
+            return []
+
+        def num(x, fmt):
+            return "-" if x is None else format(x, fmt)
+
+        out = ["", "Closing the loop (residual -> catalogued effects):"]
+        tried = d.get("effects_tried") or []
+        if tried:
+            out.append(
+                f"  {'effect':<20}{'evidence':>9}{'(eq.)':>8}  {'RMS before -> after':<24}"
+                f"{'BIC change':>11}  verdict"
+            )
+            for e in tried:
+                before, after = e.get("rms_before"), e.get("rms_after")
+                dbic = (
+                    e["bic_after"] - e["bic_before"]
+                    if e.get("bic_after") is not None and e.get("bic_before") is not None
+                    else None
+                )
+                verdict = (
+                    "accepted"
+                    if e.get("accepted")
+                    else ("removed" if e.get("removed") else "rejected")
+                )
+                if not e.get("accepted") and e.get("note"):
+                    verdict += f" ({e['note']})"
+                out.append(
+                    f"  {e['name']:<20}{num(e.get('evidence'), '.3f'):>9}"
+                    f"{num(e.get('evidence_eq'), '.3f'):>8}  "
+                    f"{num(before, '.4g') + ' -> ' + num(after, '.4g'):<24}"
+                    f"{num(dbic, '.1f'):>11}  {verdict}"
+                )
+        names = {e["name"] for e in tried}
+        diag = d.get("diagnosis") or []
+        rest = [c for c in (diag[0]["candidates"] if diag else []) if c["name"] not in names]
+        if rest:
+            out.append(
+                "  not refitted (too little evidence): "
+                + ", ".join(f"{c['name']} {num(c.get('evidence'), '.2g')}" for c in rest)
+            )
+        for sk in d.get("effects_skipped") or []:
+            out.append(f"  not applicable: {sk['name']} ({sk['reason']})")
+        if d.get("effects"):
+            out.append("  Accepted effects (final fit, 95 % intervals):")
+            for e in d["effects"]:
+                ps = ", ".join(
+                    f"{k} = {p['value']:.5g} [{num(p['ci95'][0], '.5g')}, {num(p['ci95'][1], '.5g')}]"
+                    for k, p in e["parameters"].items()
+                )
+                out.append(
+                    f"    {e['name']} ({', '.join(e['terms'])}): {ps}; RMS "
+                    f"{e['rms_before']:.4g} -> {e['rms_after']:.4g}"
+                )
+        else:
+            out.append("  No catalogued effect improves the model.")
+        fin = d.get("final")
+        if fin:
+            noise = d.get("noise_std")
+            ratio = f" ({fin['rms'] / noise:.2f}x the noise)" if noise else ""
+            out.append(
+                f"  Final model: {' + '.join([fin['family'], *fin.get('effects', [])])}, "
+                f"RMS {fin['rms']:.4g}{ratio}, BIC {fin['bic']:.1f}"
+            )
+        return out
+
     def report(self) -> str:
         """A readable fit report: discovered equations, family table, parameters, effects."""
         d = self._data
@@ -183,23 +258,26 @@ class Results:
                 f"  vs discovered: lacks {f.get('missing_terms') or 'nothing'}, "
                 f"adds {f.get('extra_terms') or 'nothing'}"
             )
-        if d.get("effects_tried"):
-            out += ["", "Closing the loop (effect, evidence, RMS before -> after, accepted):"]
-            for e in d["effects_tried"]:
-                out.append(
-                    f"  {e['name']:<20}{e.get('evidence', 0):>8.3f}  {e['rms_before']:.4g} -> "
-                    f"{e['rms_after']:.4g}  {'accepted' if e['accepted'] else 'rejected'}"
-                )
+        out += self.effects_table()
         res = d.get("residual", {})
         if res:
             wp = res.get("whiteness_p")
+            ratio = res.get("rms_over_noise")
+            verdict = "white" if wp is not None and wp >= 0.01 else "not white"
             out += [
                 "",
-                f"Residual: RMS {res.get('rms', float('nan')):.4g}, whiteness p = "
-                f"{wp if wp is None else format(wp, '.3g')}",
+                f"Residual: RMS {res.get('rms', float('nan')):.4g}"
+                + (f" ({ratio:.2f}x the noise)" if ratio is not None else "")
+                + f", Ljung-Box whiteness p = {wp if wp is None else format(wp, '.3g')} "
+                + f"({verdict})"
+                + (
+                    f", dominant {res['dominant_hz']:.3g} Hz"
+                    if res.get("dominant_hz") is not None
+                    else ""
+                ),
             ]
             if d.get("unexplained"):
-                out.append(f"  {d.get('unexplained_text', 'structure remains')}")
+                out.append(f"  Unexplained: {d.get('unexplained_text') or 'structure remains'}")
         return "\n".join(out)
 
     def __str__(self) -> str:
@@ -225,13 +303,20 @@ class Results:
             for k, p in f["parameters"].items()
         )
         eq = e(d.get("discovered", {}).get("equations", "")).replace("\n", "<br>")
+        eff = "".join(
+            f"<li>{e(x['name'])}: RMS {x['rms_before']:.4g} &rarr; {x['rms_after']:.4g}</li>"
+            for x in d.get("effects", [])
+        )
+        eff_html = f"<b>Accepted effects</b><ul>{eff}</ul>" if eff else "<i>No effect accepted.</i>"
+        if d.get("unexplained"):
+            eff_html += f"<br><b>Unexplained:</b> {e(str(d.get('unexplained_text', '')))}"
         return (
             f"<div><b>hystdisc</b> — {e(str(d.get('input')))} ({e(str(d.get('experiment')))})<br>"
             f"<b>Discovered:</b> {e(d.get('discovered', {}).get('name', ''))}<br><code>{eq}</code>"
             "<table><tr><th>family</th><th>params</th><th>RMS</th><th>BIC</th><th>held-out RMS</th>"
             f"</tr>{rows}</table><b>{e(d['family'])}</b> ({e(f.get('normalization', ''))})"
             f"<table><tr><th>parameter</th><th>value</th><th>95 % interval</th><th></th></tr>{prow}"
-            "</table></div>"
+            f"</table>{eff_html}</div>"
         )
 
 
@@ -252,8 +337,9 @@ def _family_entry(name: str, fit, discovered_terms: dict) -> dict:
         "bic": fit.bic,
         "heldout_rms": fit.heldout_rms,
         "n_params": fit.n_params,
-        "missing_terms": sorted(dt - fam_t) + sorted(dh - fam_h),
-        "extra_terms": sorted(fam_t - dt) + sorted(fam_h - dh),
+        # hysteresis-side names are prefixed: theta_dot and |theta_dot|*z exist on both sides
+        "missing_terms": sorted(dt - fam_t) + [f"dz/dt: {t}" for t in sorted(dh - fam_h)],
+        "extra_terms": sorted(fam_t - dt) + [f"dz/dt: {t}" for t in sorted(fam_h - dh)],
         "notes": list(fit.notes),
         "term_model": term_model_to_dict(fit.term_model),
         "converged": fit.success,
@@ -294,7 +380,10 @@ def build_results(disc, dataset) -> Results:
         "model": term_model_to_dict(sel.term_model),
         "effects": [],
         "unexplained": False,
-        "residual": residual_summary(sel.residuals, fs, disc.noise_std_),
+        # the residual over the samples the fit uses (driven start-up excluded)
+        "residual": residual_summary(
+            [r[m] for r, m in zip(sel.residuals, disc._fd.mask, strict=True)], fs, disc.noise_std_
+        ),
         "runs": [
             {"name": r.name, "current": r.current, "samples": int(r.t.size)} for r in dataset.runs
         ],
