@@ -234,7 +234,7 @@ def fit_shape(
     Fn = F / sc
     n = y.size
     names = (["J"] if off else []) + list(terms)
-    thresholds = [threshold] if threshold is not None else list(np.geomspace(1e-4, 0.5, 24))
+    thresholds = [threshold] if threshold is not None else list(np.geomspace(1e-4, 0.5, 16))
     path = []
     best = None
     # a fixed threshold is used as given; otherwise the whole path (from plain least squares)
@@ -480,7 +480,9 @@ class Discovery:
         # the constant column keeps an offset in the data from corrupting the start (z,
         # integrated from 0, would imitate it); the family itself has no constant
         terms = ["theta", "1", *ft] if eq.experiment != "driven" else ["theta", *ft]
-        s, c, _ = _varpro(eq, shape, terms)
+        # the stage-1 search of this shape is the natural start (no second grid search)
+        s0 = self.stage1_[shape].s if shape in getattr(self, "stage1_", {}) else None
+        s, c, _ = _varpro(eq, shape, terms, s0=s0)
         coefs, J = _coef_dict(eq, terms, c)
         b, n = SHAPES[shape].vector(s)
         hyst = {k: float(v) for k, v in zip(HYSTERESIS_TERM_NAMES, b, strict=True) if v != 0.0}
