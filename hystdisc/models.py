@@ -517,52 +517,50 @@ class Effect:
     from_torque: Callable[[Mapping[str, float], float], dict[str, float]]
 
 
+def _one_term_effect(name: str, param: Param, term: str, doc: str) -> Effect:
+    """An effect whose single parameter is the coefficient of a single torque term."""
+    return Effect(
+        name,
+        (param,),
+        (term,),
+        doc,
+        lambda p, ks: {term: p[param.name]},
+        lambda c, ks: {param.name: c.get(term, 0.0)},
+    )
+
+
 EFFECTS: dict[str, Effect] = {
     e.name: e
     for e in (
-        Effect(
+        _one_term_effect(
             "current_viscous",
-            (Param("c_i", "N*m*s/(rad*A)", -_BIG, _BIG, 0.6, "current-dependent viscous damping"),),
-            ("i*theta_dot",),
+            Param("c_i", "N*m*s/(rad*A)", -_BIG, _BIG, 0.6, "current-dependent viscous damping"),
+            "i*theta_dot",
             "viscous damping that grows with current (the seed's finding for Dahl at 1 A)",
-            lambda p, ks: {"i*theta_dot": p["c_i"]},
-            lambda c, ks: {"c_i": c.get("i*theta_dot", 0.0)},
         ),
-        Effect(
+        _one_term_effect(
             "current_saturation",
-            (
-                Param(
-                    "a_ii", "N*m/A^2", -_BIG, _BIG, -0.6, "quadratic current dependence of z torque"
-                ),
-            ),
-            ("i^2*z",),
+            Param("a_ii", "N*m/A^2", -_BIG, _BIG, -0.6, "quadratic current dependence of z torque"),
+            "i^2*z",
             "hysteretic torque not linear in current (saturating field): i^2 * z",
-            lambda p, ks: {"i^2*z": p["a_ii"]},
-            lambda c, ks: {"a_ii": c.get("i^2*z", 0.0)},
         ),
-        Effect(
+        _one_term_effect(
             "coulomb",
-            (Param("f_c", "N*m", -_BIG, _BIG, 0.3, "Coulomb (bearing) friction torque"),),
-            ("sign(theta_dot)",),
+            Param("f_c", "N*m", -_BIG, _BIG, 0.3, "Coulomb (bearing) friction torque"),
+            "sign(theta_dot)",
             "dry friction, f_c * sign(theta_dot)",
-            lambda p, ks: {"sign(theta_dot)": p["f_c"]},
-            lambda c, ks: {"f_c": c.get("sign(theta_dot)", 0.0)},
         ),
-        Effect(
+        _one_term_effect(
             "quadratic_damping",
-            (Param("c_q", "N*m*s^2/rad^2", -_BIG, _BIG, 0.3, "quadratic (aerodynamic) damping"),),
-            ("theta_dot*|theta_dot|",),
+            Param("c_q", "N*m*s^2/rad^2", -_BIG, _BIG, 0.3, "quadratic (aerodynamic) damping"),
+            "theta_dot*|theta_dot|",
             "damping growing with velocity squared, c_q * theta_dot*|theta_dot|",
-            lambda p, ks: {"theta_dot*|theta_dot|": p["c_q"]},
-            lambda c, ks: {"c_q": c.get("theta_dot*|theta_dot|", 0.0)},
         ),
-        Effect(
+        _one_term_effect(
             "cubic_stiffness",
-            (Param("k_3", "N*m/rad^3", -_BIG, _BIG, 300.0, "cubic spring stiffness"),),
-            ("theta^3",),
+            Param("k_3", "N*m/rad^3", -_BIG, _BIG, 300.0, "cubic spring stiffness"),
+            "theta^3",
             "large-angle stiffening of the spring (or gravity), k_3 * theta^3",
-            lambda p, ks: {"theta^3": p["k_3"]},
-            lambda c, ks: {"k_3": c.get("theta^3", 0.0)},
         ),
         Effect(
             "offset",
