@@ -74,16 +74,12 @@ def base_coefficients(tm: TermModel, current: float) -> np.ndarray:
 @numba.njit(cache=True, inline="always")
 def _torque(c, th, w, z, eps):
     aw = abs(w)
-    return (
-        c[0] * th
-        + c[1] * w
-        + c[2] * z
-        + c[3] * aw * z
-        + c[4] * math.tanh(w / eps)
-        + c[5] * w * aw
-        + c[6] * th * th * th
-        + c[7]
-    )
+    out = c[0] * th + c[1] * w + c[2] * z + c[3] * aw * z + c[5] * w * aw + c[7]
+    if c[4] != 0.0:  # tanh and the cube are the costly terms: skip them when absent
+        out += c[4] * math.tanh(w / eps)
+    if c[6] != 0.0:
+        out += c[6] * th * th * th
+    return out
 
 
 @numba.njit(cache=True, inline="always")
@@ -116,7 +112,7 @@ def _rate_stiffness(b, n, w, z):
     dw = abs(b[0]) + abs(b[1]) * az
     if b[2] != 0.0 or b[3] != 0.0 or b[4] != 0.0:
         azf = max(az, 1e-3)  # |z|^n is not Lipschitz at 0; do not chase it
-        pm1 = azf ** (n - 1.0)
+        pm1 = 1.0 if n == 1.0 else azf ** (n - 1.0)
         p = pm1 * azf
         dz += aw * (n * abs(b[2]) * pm1 + (n + 1.0) * abs(b[3]) * p + n * abs(b[4]) * pm1)
         dw += abs(b[2]) * p + abs(b[3]) * az * p + abs(b[4]) * p
@@ -129,9 +125,12 @@ def _n_sub(c, b, n, J, th, w, z, h, eps, mech, u, ratio, min_sub, max_sub):
     lam = dgdz  # already carries the |theta_dot| factor
     if mech:
         # the smoothed sign is stiff near w = 0: use the smallest |w| the interval may reach
-        acc = abs((u - _torque(c, th, w, z, eps)) / J)
-        wmin = max(abs(w) - 1.5 * h * acc, 0.0)
-        sech2 = 1.0 - math.tanh(wmin / eps) ** 2
+        sech2 = 0.0
+        acc = 0.0
+        if c[4] != 0.0:
+            acc = abs((u - _torque(c, th, w, z, eps)) / J)
+            wmin = max(abs(w) - 1.5 * h * acc, 0.0)
+            sech2 = 1.0 - math.tanh(wmin / eps) ** 2
         dtdw = abs(c[1] + c[3] * z * (1.0 if w >= 0 else -1.0)) + abs(c[4]) / eps * sech2
         dtdw += 2.0 * abs(c[5] * w)
         if c[4] != 0.0:
