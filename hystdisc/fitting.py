@@ -226,7 +226,8 @@ class FamilyParametrization(Parametrization):
         self.effects = tuple(effects)
         self.derived = ["delta"] if bw and normalization == "z_sat" else []
         self.normalization = (
-            "alpha_1 = 1 (z in torque units)" if bw and normalization == "alpha_1"
+            "alpha_1 = 1 (z in torque units)"
+            if bw and normalization == "alpha_1"
             else self.family.normalization
         )
         specs: list[Param] = [

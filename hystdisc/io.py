@@ -30,6 +30,7 @@ Examples
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import dataclasses
 import io
@@ -37,6 +38,9 @@ import math
 import os
 import re
 import secrets
+import signal
+import struct
+import warnings
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -44,7 +48,7 @@ from typing import Any
 
 import numpy as np
 
-from hystdisc.errors import HystdiscError, input_error
+from hystdisc.errors import HystdiscError, HystdiscWarning, input_error
 
 try:  # Python >= 3.11
     import tomllib
@@ -327,6 +331,33 @@ class Dataset:
 # --------------------------------------------------------------------------------------
 
 
+def _given_current(value: Any, source: str, run: str) -> float:
+    """A coil current given as an argument (not read from the file): one real number."""
+    if isinstance(value, (int, float, np.floating, np.integer)) and not isinstance(
+        value, (bool, np.bool_)
+    ):
+        return float(value)
+    if isinstance(value, str):
+        with contextlib.suppress(ValueError):
+            return float(value)
+    raise input_error(
+        source,
+        f"the coil current {value!r} is not a number",
+        "give the current in A as a number (rig: [current] value = 0.5)",
+        run=run,
+    )
+
+
+def _valid_rate(fs: Any) -> bool:
+    """A sampling rate: a finite real number > 0 (not a bool)."""
+    return (
+        isinstance(fs, (int, float, np.floating, np.integer))
+        and not isinstance(fs, (bool, np.bool_))
+        and math.isfinite(fs)
+        and fs > 0
+    )
+
+
 def _check_experiment(experiment: Any, source: str | None) -> str:
     text = str(experiment).strip().lower()
     if text not in EXPERIMENTS:
@@ -458,7 +489,8 @@ def _apply_units(cols: dict[str, np.ndarray], units: Mapping[str, str] | None, s
     for column, unit in units.items():
         factor = unit_factor(str(column), unit, source)
         if column in cols and factor != 1.0:
-            cols[column] = cols[column] * factor
+            with np.errstate(over="ignore"):  # an overflow to inf is reported by validate()
+                cols[column] = cols[column] * factor
 
 
 def _check_column_map(columns: Mapping[str, Any] | None, source: str) -> dict[str, Any]:
@@ -585,7 +617,8 @@ def _read_text(path: str | os.PathLike[str], hint: str = "") -> str:
             hint or "export the data as CSV or a plain text table",
         )
     try:
-        return data.decode("utf-8-sig")
+        # a doubled byte-order mark (a file re-saved by two editors) is still a BOM
+        return data.decode("utf-8-sig").lstrip("\ufeff")
     except UnicodeDecodeError as exc:
         line = data.count(b"\n", 0, exc.start) + 1
         raise input_error(
@@ -596,10 +629,15 @@ def _read_text(path: str | os.PathLike[str], hint: str = "") -> str:
 
 
 def _data_lines(text: str, skip_rows: int = 0) -> list[tuple[int, str]]:
-    """Non-blank, non-comment lines as ``(1-based line number, text)``."""
+    """Non-blank, non-comment lines as ``(1-based line number, text)``.
+
+    A byte-order mark at the start of a line (files concatenated after a comment block) is
+    dropped: it is invisible, and would otherwise hide a comment or join a column name.
+    """
     lines = text.replace("\r\n", "\n").replace("\r", "\n").split("\n")
     out = []
     for i, line in enumerate(lines[skip_rows:], start=skip_rows + 1):
+        line = line.lstrip("\ufeff")
         s = line.strip()
         if s and not s.startswith("#"):
             out.append((i, line))
@@ -652,7 +690,12 @@ def _split_rows(
         rows = [line.split() for _, line in lines]
     else:
         rows = []
-        reader = csv.reader((line for _, line in lines), delimiter=delimiter, strict=True)
+        reader = csv.reader(
+            (line for _, line in lines),
+            delimiter=delimiter,
+            strict=True,
+            skipinitialspace=True,  # '"t", "theta"': quoted fields after ', ' are still quoted
+        )
         try:
             for row in reader:
                 rows.append(row)
@@ -714,6 +757,19 @@ def _build_dataset(
     default_name: str = "0",
 ) -> Dataset:
     """Group per-sample columns by run id (order of first appearance) into a Dataset."""
+    with np.errstate(all="ignore"):  # huge currents overflow in the median; checked later
+        return _group_runs(cols, run_ids, linenos, source, experiment, current, default_name)
+
+
+def _group_runs(
+    cols: dict[str, np.ndarray],
+    run_ids: Sequence[str] | None,
+    linenos: np.ndarray | None,
+    source: str,
+    experiment: str,
+    current: float | None,
+    default_name: str,
+) -> Dataset:
     n = cols["theta"].size
     if n == 0:
         raise input_error(
@@ -732,7 +788,7 @@ def _build_dataset(
         if "current" in cols:
             cur = _run_current(cols["current"][idx], lines, source, name)
         elif current is not None:
-            cur = float(current)
+            cur = _given_current(current, source, name)
         else:
             raise input_error(
                 source,
@@ -820,7 +876,9 @@ def read_csv(
     header_line = lines[0][1]
     delimiter = _guess_delimiter(header_line)
     _, hdr = _split_rows(lines[:1], delimiter, source, None, "header")
-    header = [h.strip().strip('"').strip() for h in hdr[0]]
+    # a byte-order mark that is not at the start of the file (a comment line was put in
+    # front of a UTF-8-BOM file) is invisible in the messages: drop it from the names
+    header = [h.replace("\ufeff", "").strip().strip('"').strip() for h in hdr[0]]
     if not lines[1:]:
         raise input_error(
             source, "has a header but no data rows", "point to a file that holds the measured data"
@@ -978,8 +1036,13 @@ def read_table(
         hint = "skip header lines with skip_rows (rig: skip_rows = 1)"
         cols[canon] = _floats([r[i] for r in rows], linenos, source, f"{canon} (column {i})", hint)
     if "t" not in cols:
-        if fs is None or not fs > 0:
-            raise input_error(source, "no time column and no valid sampling rate", "give fs > 0")
+        if not _valid_rate(fs):
+            raise input_error(
+                source,
+                "no time column and no valid sampling rate"
+                + ("" if fs is None else f" (fs = {fs!r})"),
+                "give the sampling rate fs in Hz (a finite number > 0) or map a time column",
+            )
         cols["t"] = np.arange(len(rows), dtype=np.float64) / float(fs)
     if "current" not in cols and current is None:
         if current_from_name is not None:
@@ -1003,6 +1066,78 @@ def read_table(
 # --------------------------------------------------------------------------------------
 
 
+def _mat_needs_probe(path: str) -> bool:
+    """False for files the compiled reader is safe on: v4, v7.3 and all-compressed v5.
+
+    The crashes seen come from uncompressed v5 variables (a damaged class, flag or
+    data-type field); compressed variables are checked by zlib first. Walking the
+    top-level tags costs microseconds, a fork tens of milliseconds.
+    """
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(128)
+            # scipy: v4 when a zero is among the first 4 bytes; v5 when the major version
+            # byte (chosen by the endian indicator 'IM' / 'MI') is 1
+            if len(head) < 128 or 0 in head[:4] or head[124 + (head[126] == 0x49)] != 1:
+                return False  # v4, too short or not v5: scipy's own checks stop it cleanly
+            endian = "<" if head[126:128] == b"IM" else ">"
+            size = os.fstat(fh.fileno()).st_size
+            pos = 128
+            while pos < size:
+                fh.seek(pos)
+                tag = fh.read(8)
+                if len(tag) < 8:
+                    return True
+                mdtype, nbytes = struct.unpack(endian + "II", tag)
+                if mdtype != 15:  # not miCOMPRESSED
+                    return True
+                pos += 8 + nbytes
+    except OSError:
+        return False
+    return False
+
+
+def _probe_loadmat(path: str) -> str | None:
+    """Try ``scipy.io.loadmat`` in a forked child first; the signal's name if it crashed.
+
+    scipy's compiled MAT reader can kill the interpreter (segmentation fault) on some
+    damaged files, e.g. one flipped class or flag byte of a variable (found by fuzzing,
+    ``tests/fuzz_corpus/mat_*``). A crash of the child becomes a one-line error instead.
+    Python errors are left to the real load. Without ``os.fork`` (Windows) nothing is
+    probed.
+    """
+    if not hasattr(os, "fork") or not _mat_needs_probe(path):
+        return None
+    import scipy.io
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)  # fork() of a threaded process
+        pid = os.fork()
+    if pid == 0:  # pragma: no cover - the child (coverage does not follow it)
+        code = 0
+        try:
+            import faulthandler
+
+            faulthandler.disable()  # the crash is expected here: no dump on stderr
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, 1)
+            os.dup2(devnull, 2)
+            warnings.simplefilter("ignore")
+            scipy.io.loadmat(path, squeeze_me=False, mat_dtype=False)
+        except BaseException:
+            code = 1
+        finally:
+            os._exit(code)
+    _, status = os.waitpid(pid, 0)
+    if os.WIFSIGNALED(status):
+        sig = os.WTERMSIG(status)
+        try:
+            return signal.Signals(sig).name
+        except ValueError:  # pragma: no cover
+            return f"signal {sig}"
+    return None
+
+
 def _load_mat(path: str | os.PathLike[str]) -> dict[str, Any]:
     import scipy.io
 
@@ -1015,6 +1150,13 @@ def _load_mat(path: str | os.PathLike[str]) -> dict[str, Any]:
             source,
             "is a MATLAB v7.3 (HDF5) file, which cannot be read",
             "re-save it in MATLAB with save(name, '-v7')",
+        )
+    crash = _probe_loadmat(str(path))
+    if crash:
+        raise input_error(
+            source,
+            f"is a damaged MATLAB .mat file (the MAT reader crashed on it: {crash})",
+            "re-save it in MATLAB with save(name, '-v7'), or export the data as CSV",
         )
     try:
         raw = scipy.io.loadmat(str(path), squeeze_me=False, mat_dtype=False)
@@ -1215,7 +1357,7 @@ def read_mat(
                 f"no time variable (found: {', '.join(sorted(variables)[:12])})",
                 f"add a 't' variable, map it with {_COLUMN_FLAG} t=NAME, or give the sampling rate fs",
             )
-        if not (isinstance(fs, (int, float, np.floating, np.integer)) and fs > 0):
+        if not _valid_rate(fs):
             raise input_error(source, f"sampling rate fs={fs!r} is invalid", "give fs > 0 in Hz")
         cols["t"] = np.arange(n, dtype=np.float64) / float(fs)
     _apply_units(cols, units, source)
@@ -1273,6 +1415,13 @@ def validate(dataset: Dataset, need_currents: int = 1) -> Dataset:
     ...
     hystdisc.errors.HystdiscError: x.csv: a single current (0.5 A) where 2 are needed; fix: ...
     """
+    # huge values may overflow in the checks (std, differences); every check below tests
+    # finiteness itself, so numpy's overflow warnings would only be noise for the user
+    with np.errstate(all="ignore"):
+        return _validate(dataset, need_currents)
+
+
+def _validate(dataset: Dataset, need_currents: int) -> Dataset:
     if not isinstance(dataset, Dataset):
         raise input_error(
             None,
@@ -1342,6 +1491,15 @@ def validate(dataset: Dataset, need_currents: int = 1) -> Dataset:
                 run=name,
             )
         dt = np.diff(run.t)
+        if not np.all(np.isfinite(dt)):
+            k = int(np.argmax(~np.isfinite(dt)))
+            raise input_error(
+                src,
+                f"time steps overflow on {_where(run, k + 1)} "
+                f"(t = {run.t[k + 1]:.10g} s after {run.t[k]:.10g} s)",
+                "check the time column and its unit (--units t=...)",
+                run=name,
+            )
         if np.any(dt <= 0):
             k = int(np.argmax(dt <= 0))
             raise input_error(
@@ -1377,9 +1535,22 @@ def validate(dataset: Dataset, need_currents: int = 1) -> Dataset:
                 "check the column mapping, or remove the run",
                 run=name,
             )
+        _check_motion(run, src, exp)
     levels = distinct_currents(dataset.currents)
     if len(levels) < need_currents:
         shown = ", ".join(f"{c:g}" for c in levels)
+        if len(levels) == 1 and levels[0] == 0.0 and len(dataset.runs) > 1:
+            problem = (
+                f"every run has current 0 A (the current column is all zero) where "
+                f"{need_currents} distinct currents are needed"
+            )
+            raise input_error(
+                source,
+                problem,
+                f"check the current column ({_COLUMN_FLAG} current=NAME) and its unit "
+                "(--units current=mA), add runs at other currents, or declare a family with "
+                "--model so that only its current-independent part is fitted",
+            )
         if len(levels) == 1:
             problem = f"a single current ({shown} A) where {need_currents} are needed"
         else:
@@ -1393,6 +1564,130 @@ def validate(dataset: Dataset, need_currents: int = 1) -> Dataset:
             "current-independent part is fitted",
         )
     return dataset
+
+
+#: a run whose angle varies less than this many noise standard deviations is locked
+LOCKED_RATIO = 3.0
+#: samples needed for the motion checks (the noise estimate needs 26)
+_MOTION_MIN = 26
+
+
+def _check_motion(run: Run, src: str, exp: str) -> None:
+    """Numerical faults of a run's motion (issue 8): locked, clipped, not decaying.
+
+    A locked damper (the angle never leaves its noise band, and what is left is white) is
+    an error naming the run.
+    A signal held at its extreme value as by a saturated sensor, and a release whose motion
+    does not decay, are warned about (:class:`~hystdisc.errors.HystdiscWarning`); the run
+    is kept as it is.
+    """
+    if run.n < _MOTION_MIN:
+        return
+    noise = estimate_noise(run.theta)
+    spread = float(np.std(run.theta))
+    if spread <= LOCKED_RATIO * noise and _flatness(run.theta) >= 0.3:
+        raise input_error(
+            src,
+            f"theta never moves beyond its noise (std {spread:.3g} against noise "
+            f"{noise:.3g}): the damper seems locked in this run",
+            "remove the run (or check the column mapping and that the damper was free)",
+            run=run.name,
+        )
+    signals = [("theta", run.theta, noise)]
+    if exp == "driven" and run.torque is not None:
+        signals.append(("torque", run.torque, estimate_noise(run.torque)))
+    for key, x, sd in signals:
+        clip = _clipped(x, sd)
+        if clip is not None:
+            side, value, longest, total = clip
+            warnings.warn(
+                f"{src}, run {run.name}: {key} stays at its {side} {value:.6g} for {longest} "
+                f"samples in a row ({total} in all), as a saturated or clipped sensor does; "
+                "the run was kept as it is, so the fit is biased there (re-record within the "
+                "sensor's range, or cut the clipped part)",
+                HystdiscWarning,
+                stacklevel=4,
+            )
+    if exp == "release":
+        ratio = _decay_ratio(run.theta, noise)
+        if ratio is not None and ratio > 0.9:
+            verb = "grows" if ratio > 1.1 else "does not decay"
+            warnings.warn(
+                f"{src}, run {run.name}: the motion {verb} (RMS of the last quarter is "
+                f"{100 * ratio:.0f} % of the first), which a free release of a damper cannot "
+                "do; the run was kept as it is, but its damping parameters will not be "
+                "identifiable (check that it is a release, not a driven or forced record)",
+                HystdiscWarning,
+                stacklevel=4,
+            )
+
+
+def _flatness(x: np.ndarray) -> float:
+    """Spectral flatness of ``x``: about 0.56 for white noise, near 0 for a signal.
+
+    Guards the locked-damper check against signals that are merely rough at the sample
+    level (a tone near the Nyquist frequency looks like noise to :func:`estimate_noise`).
+    """
+    power = np.abs(np.fft.rfft(x - np.mean(x)))[1:] ** 2
+    mean = float(np.mean(power)) if power.size else 0.0
+    if not mean > 0:
+        return 0.0
+    return float(np.exp(np.mean(np.log(np.maximum(power, mean * 1e-30)))) / mean)
+
+
+def _clipped(x: np.ndarray, noise: float) -> tuple[str, float, int, int] | None:
+    """``(side, value, longest stretch, samples)`` when ``x`` looks clipped at an extreme.
+
+    A saturated sensor repeats its limit exactly for as long as the true signal lies
+    beyond it. A natural turning point of a quantized signal repeats its level too, but
+    only for as long as the curvature allows: the signal moves about four quantization
+    steps from the vertex within twice the half-width of the plateau. A plateau at the
+    maximum (or minimum) of at least 5 samples whose flank, half a plateau further on, lies
+    more than ``10 steps + 6 noise`` away is taken as clipped.
+    """
+    n = x.size
+    for side, value in (("maximum", float(np.max(x))), ("minimum", float(np.min(x)))):
+        at = x == value
+        total = int(at.sum())
+        if total < 5:
+            continue
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], at.view(np.int8), [0]])))
+        starts, ends = edges[::2], edges[1::2]
+        k = int(np.argmax(ends - starts))
+        a, b = int(starts[k]), int(ends[k])
+        longest = b - a
+        if longest < 5:
+            continue
+        others = x[~at]
+        if others.size == 0:
+            continue
+        step = float(np.min(np.abs(others - value)))
+        if a == 0:  # a release starts at rest: the vertex is the first sample
+            probes = [2 * longest] if 2 * longest < n else []
+        else:
+            half = max(1, longest // 2)
+            probes = [i for i in (a - half - 1, b + half) if 0 <= i < n]
+        if not probes:
+            continue
+        drop = min(abs(float(x[i]) - value) for i in probes)
+        if drop > 10.0 * step + 6.0 * noise:
+            return side, value, longest, total
+    return None
+
+
+def _decay_ratio(theta: np.ndarray, noise: float) -> float | None:
+    """RMS of the last quarter over that of the first, if the run holds 4+ oscillations."""
+    x = theta - float(np.mean(theta))
+    h = 3.0 * noise
+    side = np.sign(x) * (np.abs(x) > h)  # crossings with hysteresis: noise does not count
+    side = side[side != 0]
+    crossings = int(np.count_nonzero(np.diff(side)))
+    if crossings < 8:
+        return None
+    q = theta.size // 4
+    first = float(np.std(theta[:q]))
+    last = float(np.std(theta[-q:]))
+    return last / first if first > 0 else None
 
 
 # --------------------------------------------------------------------------------------
@@ -1596,6 +1891,9 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes, force: bool = 
             f"cannot be written ({exc.strerror or exc})",
             "choose a writable location with -o",
         ) from None
+    except BaseException:  # Ctrl-C (KeyboardInterrupt) between the write and the rename
+        tmp.unlink(missing_ok=True)
+        raise
     return target
 
 
@@ -1823,7 +2121,7 @@ def _normalize_rig(rig: Mapping[str, Any], source: str) -> dict[str, Any]:
     out["skip_rows"] = skip
     fs = rig.get("fs")
     if fs is not None:
-        if isinstance(fs, bool) or not isinstance(fs, (int, float)) or not fs > 0:
+        if not _valid_rate(fs):
             raise input_error(
                 source, f"fs = {fs!r} is invalid", "give the sampling rate in Hz (> 0)"
             )

@@ -99,6 +99,9 @@ SCENARIO_KEYS = (
 )
 """Keys a scenario TOML may hold (``declared`` and ``description`` are informative only)."""
 
+MAX_SAMPLES = 10_000_000
+"""Most samples :func:`generate` makes in all runs together (80 MB per signal)."""
+
 CSV_DIGITS = 7
 """Significant digits kept when a synthetic dataset is written (:func:`write_dataset`)."""
 
@@ -384,6 +387,13 @@ def generate(
                 "turn as a whole number > 0"
             )
         q = 2.0 * np.pi / int(encoder_counts)
+    per_current = len(drives) if exp == "driven" and isinstance(drives, (list, tuple)) else 1
+    total = duration * fs * len(cur) * max(per_current, 1)
+    if not total <= MAX_SAMPLES:  # also catches an overflow to inf
+        raise HystdiscError(
+            f"duration {duration:g} s at fs {fs:g} Hz gives {total:.3g} samples in all, more "
+            f"than {MAX_SAMPLES:.0e}; fix: shorten the duration, lower fs or use fewer runs"
+        )
     n = int(round(duration * fs))
     if n < 2:
         raise HystdiscError(
@@ -523,9 +533,15 @@ def load_scenario(path: str | os.PathLike[str]) -> dict[str, Any]:
         text = Path(path).read_text(encoding="utf-8")
     except FileNotFoundError:
         raise _scenario_error(source, "file does not exist", "check the path") from None
+    except UnicodeDecodeError as exc:
+        raise _scenario_error(
+            source,
+            f"is not UTF-8 text (byte 0x{exc.object[exc.start]:02x} at offset {exc.start})",
+            "save the scenario as UTF-8 text (TOML)",
+        ) from None
     except OSError as exc:
         raise _scenario_error(
-            source, f"cannot be read ({exc.strerror})", "check the path"
+            source, f"cannot be read ({exc.strerror or exc})", "check the path"
         ) from None
     try:
         raw = tomllib.loads(text)
@@ -553,6 +569,12 @@ def normalize_scenario(raw: Mapping[str, Any], source: str = "scenario") -> dict
             if not isinstance(raw[key], str):
                 raise _scenario_error(source, f"{key} = {raw[key]!r} is not text", "quote it")
             sc[key] = raw[key]
+    if "output" in sc and (not sc["output"].strip() or "\x00" in sc["output"]):
+        raise _scenario_error(
+            source,
+            f"output = {sc['output']!r} is not a usable file name",
+            'name the CSV file, e.g. output = "dahl.csv"',
+        )
     params = raw.get("params", {})
     if not isinstance(params, Mapping):
         raise _scenario_error(source, "params must be a table", "write [params] then k_s = 158")

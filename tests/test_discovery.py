@@ -59,8 +59,11 @@ def test_committed_dataset_selects_its_family(committed, fam):
     for k in CHECK_3PCT[fam]:
         assert fit.params[k] == pytest.approx(truth[k], rel=0.03), k
     # every true value inside (or near) its 95 % interval: intervals are honest
-    inside = [fit.ci95[k][0] - 3 * fit.stderr[k] <= truth[k] <= fit.ci95[k][1] + 3 * fit.stderr[k]
-              for k in truth if k in fit.ci95]
+    inside = [
+        fit.ci95[k][0] - 3 * fit.stderr[k] <= truth[k] <= fit.ci95[k][1] + 3 * fit.stderr[k]
+        for k in truth
+        if k in fit.ci95
+    ]
     assert np.mean(inside) >= 0.75
 
 
@@ -82,8 +85,17 @@ def test_fresh_parameters_and_seed_dahl():
 
 
 def test_fresh_parameters_and_seed_bouc_wen():
-    p = {"alpha_1": 0.7, "alpha_2": 1.2, "c_1": 0.4, "c_2": 0.9, "beta": 6.0, "gamma": 18.0,
-         "delta": 24.0, "n": 1.5, "k_s": 170.0}
+    p = {
+        "alpha_1": 0.7,
+        "alpha_2": 1.2,
+        "c_1": 0.4,
+        "c_2": 0.9,
+        "beta": 6.0,
+        "gamma": 18.0,
+        "delta": 24.0,
+        "n": 1.5,
+        "k_s": 170.0,
+    }
     data = generate(Model("bouc-wen", p), currents=(0, 0.5, 1.0), duration=5, noise=1e-3, seed=12)
     d = _fit(data, families=["dahl", "lugre", "bouc-wen"], heldout=False)
     assert d.family_ == "bouc-wen"
@@ -103,8 +115,9 @@ def test_no_spurious_terms_on_clean_data():
 
 def test_structure_on_encoder_quantized_data():
     # 4096 counts per turn: steps of 1.53 mrad, quantization noise ~0.44 mrad
-    data = generate(Model("dahl"), currents=(0, 0.5, 1.0), duration=5, noise=0.0, seed=3,
-                    encoder_counts=4096)
+    data = generate(
+        Model("dahl"), currents=(0, 0.5, 1.0), duration=5, noise=0.0, seed=3, encoder_counts=4096
+    )
     d = _fit(data, families=["bingham", "dahl", "lugre"], heldout=False)
     assert d.family_ == "dahl"
     assert set(d.terms_["torque"]) == set(FAMILIES["dahl"].torque_terms)
@@ -123,12 +136,29 @@ def test_declared_model_and_single_current_warning():
 def test_results_contract_and_predict_roundtrip(committed, tmp_path):
     d = committed["dahl"]
     res = d.results_.summary()
-    for key in ["version", "input", "experiment", "noise_std", "terms", "family", "families",
-                "effects", "unexplained", "residual"]:
+    for key in [
+        "version",
+        "input",
+        "experiment",
+        "noise_std",
+        "terms",
+        "family",
+        "families",
+        "effects",
+        "unexplained",
+        "residual",
+    ]:
         assert key in res, key
     fam = res["families"]["dahl"]
-    for key in ["parameters", "normalization", "rms", "bic", "heldout_rms", "missing_terms",
-                "extra_terms"]:
+    for key in [
+        "parameters",
+        "normalization",
+        "rms",
+        "bic",
+        "heldout_rms",
+        "missing_terms",
+        "extra_terms",
+    ]:
         assert key in fam, key
     assert fam["parameters"]["rho"]["ci95"][0] < fam["parameters"]["rho"]["value"]
     assert fam["heldout_rms"] == pytest.approx(1e-3, rel=0.15)
@@ -140,7 +170,9 @@ def test_results_contract_and_predict_roundtrip(committed, tmp_path):
     from hystdisc.predict import predict_dataset
 
     preds = predict_dataset(back.term_model(), fresh)
-    rms = np.sqrt(np.mean(np.concatenate([p - r.theta for p, r in zip(preds, fresh.runs)]) ** 2))
+    rms = np.sqrt(
+        np.mean(np.concatenate([p - r.theta for p, r in zip(preds, fresh.runs, strict=True)]) ** 2)
+    )
     assert rms < 1.15e-3
 
 
@@ -150,8 +182,19 @@ def test_cli_discover_and_predict(tmp_path, capsys):
 
     csv = write_csv(data, tmp_path / "run.csv")
     out = tmp_path / "res.json"
-    code = main(["discover", str(csv), "--families", "dahl,bingham", "--json", str(out),
-                 "--quiet", "--no-heldout", "--no-effects"])
+    code = main(
+        [
+            "discover",
+            str(csv),
+            "--families",
+            "dahl,bingham",
+            "--json",
+            str(out),
+            "--quiet",
+            "--no-heldout",
+            "--no-effects",
+        ]
+    )
     assert code == 0
     text = capsys.readouterr().out
     assert "Selected family: dahl" in text and "k_wb" in text

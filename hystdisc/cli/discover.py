@@ -5,14 +5,17 @@ Examples::
     hystdisc discover data_synth/bouc-wen.csv
     hystdisc discover run.csv --model dahl --json dahl.json --force
     hystdisc discover ../shared/data/utfsm_mr_damper --rig rig.toml
+    hystdisc discover rig1.csv rig2.csv rig3.csv --each --jobs 2 --out results/
+    hystdisc discover data/*.csv --each --scheduler tcp://10.0.0.5:8786 --out results/
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
-from hystdisc.cli.common import add_data_options, load_data, progress_printer
+from hystdisc.cli.common import _pairs, add_data_options, load_data, progress_printer
 from hystdisc.discovery import ALL_FAMILIES, Discovery
 from hystdisc.errors import HystdiscError
 from hystdisc.models import FAMILIES
@@ -24,7 +27,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
         help="discover the hysteresis model of the data and fit every family",
         description=(
             "Discover the active terms by sparse regression with a latent hysteretic state, "
-            "fit every family (Bingham, Dahl, LuGre, Bouc-Wen) by output error with 95 %% "
+            "fit every family (Bingham, Dahl, LuGre, Bouc-Wen) by output error with 95 % "
             "intervals, select one by BIC, and write results.json."
         ),
     )
@@ -51,17 +54,58 @@ def add_parser(sub) -> argparse.ArgumentParser:
         action="store_true",
         help="skip the closing loop (residual -> catalogued effects)",
     )
+    p.add_argument(
+        "--report", metavar="PATH", help="also write an HTML report (and a .md summary beside it)"
+    )
     p.add_argument("--force", action="store_true", help="overwrite existing output files")
     p.add_argument("--quiet", action="store_true", help="no progress messages on stderr")
+    g = p.add_argument_group(
+        "many datasets",
+        "By default all FILEs form ONE dataset. With --each every FILE (or folder) is a "
+        "dataset of its own, written to DIR/<stem>.results.json; --jobs and --scheduler "
+        "run those datasets in parallel, with results byte-identical to the serial run.",
+    )
+    g.add_argument(
+        "--each",
+        action="store_true",
+        help="discover each FILE as its own dataset (writes DIR/<stem>.results.json)",
+    )
+    g.add_argument(
+        "--jobs",
+        type=int,
+        default=1,
+        metavar="N",
+        help="with --each: datasets discovered in parallel by N local processes "
+        "(joblib; -1 = all cores; default 1)",
+    )
+    g.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="with --each: run the datasets on a Dask cluster (dask.distributed scheduler "
+        "address, e.g. tcp://host:8786; needs pip install hystdisc[dask], hystdisc on the "
+        "workers and the files readable there at the same paths)",
+    )
     return p
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.each:
+        return run_each(args)
+    if args.jobs != 1 or args.scheduler:
+        flag = "--scheduler" if args.scheduler else "--jobs"
+        raise HystdiscError(
+            f"{flag} runs several datasets in parallel, but without --each all FILEs form one "
+            f"dataset; fix: add --each (one dataset per FILE) or drop {flag}"
+        )
     json_path = Path(args.json) if args.json else Path(args.out) / "results.json"
     if json_path.exists() and not args.force:
         raise HystdiscError(
             f"{json_path}: exists; fix: pass --force to overwrite or choose another --json/--out"
         )
+    if args.report:
+        from hystdisc.report import check_report_path
+
+        check_report_path(args.report, args.force)
     data = load_data(args, args.files)
     families = None
     if args.families:
@@ -82,4 +126,75 @@ def run(args: argparse.Namespace) -> int:
     res.save(json_path, force=args.force)
     print(res.report())
     print(f"\nwrote {json_path}")
+    if args.report:
+        from hystdisc.report import write_report
+
+        path = write_report(
+            disc, data, args.report, force=args.force, progress=progress_printer(args.quiet)
+        )
+        print(f"wrote {path}")
+    return 0
+
+
+def run_each(args: argparse.Namespace) -> int:
+    """``--each``: every FILE is a dataset; serial, ``--jobs N`` or ``--scheduler ADDRESS``."""
+    from hystdisc.batch import discover_many, output_paths
+    from hystdisc.io import atomic_write_text
+
+    if args.json:
+        raise HystdiscError(
+            "--json names one results file, but --each writes one per FILE; fix: drop --json "
+            "and use --out DIR (files are DIR/<stem>.results.json)"
+        )
+    paths = output_paths(args.files, args.out)
+    if not args.force:
+        for path in paths:
+            if path.exists():
+                raise HystdiscError(
+                    f"{path}: exists; fix: pass --force to overwrite or choose another --out"
+                )
+    columns = _pairs(args.column, "--column")
+    load_options = {
+        "experiment": args.experiment,
+        "rig": args.rig,
+        "columns": {k: int(v) if v.isdigit() else v for k, v in columns.items()} or None,
+        "units": _pairs(args.units, "--units") or None,
+    }
+    families = None
+    if args.families:
+        families = [f.strip() for f in args.families.split(",") if f.strip()]
+    options = {
+        "experiment": args.experiment,
+        "families": families,
+        "model": args.model,
+        "threshold": args.threshold,
+        "ensemble": args.ensemble,
+        "heldout": not args.no_heldout,
+        "seed": args.seed,
+        "close_loop": not args.no_effects,
+    }
+    items = discover_many(
+        args.files,
+        load_options=load_options,
+        discovery_options=options,
+        jobs=args.jobs,
+        scheduler=args.scheduler,
+        progress=progress_printer(args.quiet),
+    )
+    failed = 0
+    for item, path in zip(items, paths, strict=True):
+        if item.error:
+            failed += 1
+            print(f"hystdisc: error: {item.error}", file=sys.stderr)
+            continue
+        atomic_write_text(path, item.results_json, force=args.force)
+        print(item.report)
+        print(f"\nwrote {path}\n")
+    if failed:
+        print(
+            f"hystdisc: error: {failed} of {len(items)} datasets failed (messages above); "
+            "fix: correct those files and rerun them",
+            file=sys.stderr,
+        )
+        return 2
     return 0
