@@ -102,14 +102,17 @@ class Results:
             raise HystdiscError(
                 f"{p}: no such file; fix: give the results.json written by discover"
             ) from None
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        except (OSError, UnicodeDecodeError, ValueError, RecursionError) as exc:
+            # ValueError covers JSONDecodeError and over-long integer literals
             msg = str(exc).splitlines()[0]
             raise HystdiscError(
                 f"{p}: not a readable results.json ({msg}); fix: rerun hystdisc discover --json"
             ) from None
-        if not isinstance(data, dict) or "families" not in data or "model" not in data:
+        if not isinstance(data, dict) or any(
+            k not in data for k in ("families", "model", "experiment")
+        ):
             raise HystdiscError(
-                f"{p}: not a hystdisc results.json (no 'families'/'model' keys); fix: give the file "
+                f"{p}: not a hystdisc results.json (no 'families'/'model'/'experiment' keys); fix: give the file "
                 "written by hystdisc discover --json"
             )
         return cls(data)
@@ -118,9 +121,14 @@ class Results:
         """The fitted model in term form (final model with effects, or one family's fit)."""
         try:
             if family is None:
-                return term_model_from_dict(self._data["model"])
-            return term_model_from_dict(self._data["families"][family]["term_model"])
-        except (KeyError, TypeError, ValueError, AttributeError) as exc:
+                tm = term_model_from_dict(self._data["model"])
+            else:
+                tm = term_model_from_dict(self._data["families"][family]["term_model"])
+            values = [*tm.torque.values(), *tm.hysteresis.values(), tm.n, tm.J]
+            if not all(math.isfinite(v) for v in values):
+                raise ValueError("a coefficient is not finite")
+            return tm
+        except (KeyError, TypeError, ValueError, AttributeError, OverflowError) as exc:
             raise HystdiscError(
                 f"results: no usable model for {family or 'the selected family'} ({exc}); fix: "
                 "rerun hystdisc discover"

@@ -1460,16 +1460,7 @@ def test_fuzz_predict_cli(work, predict_data, edits, family):
 #: which this suite may not change; they are reported to the lead. Each xfail is strict: it
 #: turns into a failure once fixed, so that the mark (and the tolerance in
 #: ``known_results_bug``) gets removed.
-RESULTS_XFAIL = {
-    "results_xfail_deep_nesting.json": "Results.load: RecursionError from json.loads on deeply "
-    "nested JSON escapes (only OSError/UnicodeDecodeError/JSONDecodeError are caught)",
-    "results_xfail_huge_int.json": "Results.term_model: float() of a 400-digit integer raises "
-    "OverflowError, which term_model does not catch",
-    "results_xfail_nan_string.json": 'Results.term_model: a coefficient "nan" (or "inf", '
-    '"1e999") gives a non-finite TermModel instead of an error',
-    "results_xfail_no_experiment.json": "Results.load accepts a file without 'experiment'; "
-    "hystdisc predict then fails with AttributeError",
-}
+RESULTS_XFAIL: dict[str, str] = {}  # all four reported problems are fixed in results.py
 
 #: corpus file -> words its one-line error must contain ("ok": it must load)
 CORPUS: dict[str, tuple[str, ...] | str] = {
@@ -1501,6 +1492,11 @@ CORPUS: dict[str, tuple[str, ...] | str] = {
     "results_err_unknown_term.json": ("theta^7",),
     # fixed, each is a one-line error (any wording)
     **{name: () for name in RESULTS_XFAIL},
+    # reported problems of results.py, now one-line errors
+    "results_xfail_deep_nesting.json": (),
+    "results_xfail_huge_int.json": (),
+    "results_xfail_nan_string.json": (),
+    "results_xfail_no_experiment.json": (),
 }
 
 
@@ -1571,11 +1567,6 @@ def _long_int_results(tmp: Path) -> Path:
     return p
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="Results.load: an integer literal over 4300 digits makes json.loads raise a plain "
-    "ValueError (int max str digits), which Results.load does not catch",
-)
 def test_results_long_integer_literal(tmp_path):
     with pytest.raises(HystdiscError) as exc:
         Results.load(_long_int_results(tmp_path)).term_model()
