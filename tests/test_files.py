@@ -236,11 +236,6 @@ def test_ctrl_c_during_the_fit_leaves_nothing(tmp_path, data_csv, capsys, monkey
     assert not out.exists() or not any(out.iterdir())
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="cli/__init__.py prints 'interrupted; no output was written' even when --each (or "
-    "simulate --regenerate) had already written complete files before Ctrl-C",
-)
 def test_ctrl_c_message_is_true_after_some_outputs(tmp_path, capsys, monkeypatch):
     files = []
     for seed in (1, 2):

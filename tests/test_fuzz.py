@@ -501,7 +501,7 @@ def _check_same(ds: Dataset, doc) -> None:
         assert r.theta.tolist() == theta
 
 
-@fuzz_settings(600)
+@fuzz_settings(500)
 @given(doc=csv_documents())
 def test_fuzz_csv_mutations(work, doc):
     header, rows = list(doc["header"]), [list(r) for r in doc["rows"]]
@@ -764,7 +764,7 @@ def _savemat(path: Path, d: dict, fmt: str) -> bool:
     return True
 
 
-@fuzz_settings(300)
+@fuzz_settings(250)
 @given(
     d=mat_documents(),
     kw=_MAT_KW,
@@ -1052,7 +1052,7 @@ def table_folder(work) -> Path:
     return folder
 
 
-@fuzz_settings(350)
+@fuzz_settings(300)
 @given(
     doc=rig_documents(),
     raw=often(st.none(), st.text(max_size=80)),
@@ -1170,7 +1170,7 @@ def scenario_documents(draw):
     return doc
 
 
-@fuzz_settings(350)
+@fuzz_settings(300)
 @given(
     doc=scenario_documents(),
     raw=often(st.none(), st.text(max_size=60)),
@@ -1362,7 +1362,7 @@ def _results_outcome(path: Path):
         return exc
 
 
-@fuzz_settings(400)
+@fuzz_settings(350)
 @given(
     edits=st.lists(st.tuples(_PATHS, _JSON_VALUES, st.booleans()), max_size=3),
     text_op=st.none()
@@ -1403,7 +1403,7 @@ def predict_data(work) -> Path:
     return write_csv(ds, work / "predict_data.csv")
 
 
-@fuzz_settings(80)
+@fuzz_settings(60)
 @given(
     edits=st.lists(st.tuples(_PATHS, _JSON_VALUES, st.booleans()), max_size=2),
     family=st.none() | st.sampled_from(["dahl", "bingham", "lugre", ""]),

@@ -70,7 +70,11 @@ def main(argv: list[str] | None = None) -> int:
         print(f"hystdisc: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print("hystdisc: interrupted; no output was written", file=sys.stderr)
+        print(
+            "hystdisc: interrupted; no partial file was left (outputs completed before the "
+            "interrupt are kept)",
+            file=sys.stderr,
+        )
         return 130
 
 
