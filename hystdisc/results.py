@@ -108,14 +108,23 @@ class Results:
             raise HystdiscError(
                 f"{p}: not a readable results.json ({msg}); fix: rerun hystdisc discover --json"
             ) from None
-        if not isinstance(data, dict) or any(
-            k not in data for k in ("families", "model", "experiment")
+        if (
+            not isinstance(data, dict)
+            or any(k not in data for k in ("families", "model", "experiment"))
+            or not isinstance(data["families"], dict)
+            or not isinstance(data["model"], dict)
         ):
             raise HystdiscError(
                 f"{p}: not a hystdisc results.json (no 'families'/'model'/'experiment' keys); fix: give the file "
                 "written by hystdisc discover --json"
             )
-        return cls(data)
+        try:
+            return cls(data)
+        except RecursionError:  # _round() recurses once per nesting level
+            raise HystdiscError(
+                f"{p}: not a readable results.json (nested too deeply); fix: rerun hystdisc "
+                "discover --json"
+            ) from None
 
     def term_model(self, family: str | None = None) -> TermModel:
         """The fitted model in term form (final model with effects, or one family's fit)."""
