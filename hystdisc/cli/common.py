@@ -76,3 +76,44 @@ def progress_printer(quiet: bool) -> Callable[[str], None] | None:
         print(f"[{time.perf_counter() - t0:6.1f} s] {msg}", file=sys.stderr, flush=True)
 
     return say
+
+
+def add_discovery_options(p: argparse.ArgumentParser) -> None:
+    """Options of the estimator shared by ``discover`` and ``report`` (plus the data options)."""
+    from hystdisc.discovery import ALL_FAMILIES
+    from hystdisc.models import FAMILIES
+
+    p.add_argument(
+        "--model", help=f"declare the family instead of selecting one: {', '.join(FAMILIES)}"
+    )
+    p.add_argument(
+        "--families",
+        metavar="LIST",
+        help=f"families to compare, comma separated (default: {','.join(ALL_FAMILIES)})",
+    )
+    add_data_options(p)
+    p.add_argument("--seed", type=int, default=0, help="seed of the resampling (default 0)")
+    p.add_argument("--ensemble", action="store_true", help="inclusion probabilities by bagging")
+    p.add_argument("--no-heldout", action="store_true", help="skip leave-one-run-out errors")
+    p.add_argument(
+        "--no-effects",
+        action="store_true",
+        help="skip the closing loop (residual -> catalogued effects)",
+    )
+
+
+def discovery_options(args: argparse.Namespace) -> dict:
+    """Keyword arguments of :class:`~hystdisc.discovery.Discovery` from the shared options."""
+    families = None
+    if args.families:
+        families = [f.strip() for f in args.families.split(",") if f.strip()]
+    return {
+        "experiment": args.experiment,
+        "families": families,
+        "model": args.model,
+        "threshold": getattr(args, "threshold", None),
+        "ensemble": args.ensemble,
+        "heldout": not args.no_heldout,
+        "seed": args.seed,
+        "close_loop": not args.no_effects,
+    }

@@ -15,10 +15,15 @@ import argparse
 import sys
 from pathlib import Path
 
-from hystdisc.cli.common import _pairs, add_data_options, load_data, progress_printer
-from hystdisc.discovery import ALL_FAMILIES, Discovery
+from hystdisc.cli.common import (
+    _pairs,
+    add_discovery_options,
+    discovery_options,
+    load_data,
+    progress_printer,
+)
+from hystdisc.discovery import Discovery
 from hystdisc.errors import HystdiscError
-from hystdisc.models import FAMILIES
 
 
 def add_parser(sub) -> argparse.ArgumentParser:
@@ -34,26 +39,10 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument(
         "files", nargs="+", metavar="FILE", help="data files or folders (CSV, .mat, tables)"
     )
-    p.add_argument(
-        "--model", help=f"declare the family instead of selecting one: {', '.join(FAMILIES)}"
-    )
-    p.add_argument(
-        "--families",
-        metavar="LIST",
-        help=f"families to compare, comma separated (default: {','.join(ALL_FAMILIES)})",
-    )
-    add_data_options(p)
+    add_discovery_options(p)
     p.add_argument("--out", metavar="DIR", default=".", help="folder for results.json (default: .)")
     p.add_argument("--json", metavar="PATH", help="results file (default: DIR/results.json)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the resampling (default 0)")
     p.add_argument("--threshold", type=float, help="fixed STLSQ threshold (default: chosen by BIC)")
-    p.add_argument("--ensemble", action="store_true", help="inclusion probabilities by bagging")
-    p.add_argument("--no-heldout", action="store_true", help="skip leave-one-run-out errors")
-    p.add_argument(
-        "--no-effects",
-        action="store_true",
-        help="skip the closing loop (residual -> catalogued effects)",
-    )
     p.add_argument(
         "--report", metavar="PATH", help="also write an HTML report (and a .md summary beside it)"
     )
@@ -107,19 +96,9 @@ def run(args: argparse.Namespace) -> int:
 
         check_report_path(args.report, args.force)
     data = load_data(args, args.files)
-    families = None
-    if args.families:
-        families = [f.strip() for f in args.families.split(",") if f.strip()]
     disc = Discovery(
-        experiment=args.experiment,
-        families=families,
-        model=args.model,
-        threshold=args.threshold,
-        ensemble=args.ensemble,
-        heldout=not args.no_heldout,
-        seed=args.seed,
+        **discovery_options(args),
         progress=progress_printer(args.quiet),
-        close_loop=not args.no_effects,
     ).fit(data)
     res = disc.results_
     json_path.parent.mkdir(parents=True, exist_ok=True)
@@ -160,19 +139,7 @@ def run_each(args: argparse.Namespace) -> int:
         "columns": {k: int(v) if v.isdigit() else v for k, v in columns.items()} or None,
         "units": _pairs(args.units, "--units") or None,
     }
-    families = None
-    if args.families:
-        families = [f.strip() for f in args.families.split(",") if f.strip()]
-    options = {
-        "experiment": args.experiment,
-        "families": families,
-        "model": args.model,
-        "threshold": args.threshold,
-        "ensemble": args.ensemble,
-        "heldout": not args.no_heldout,
-        "seed": args.seed,
-        "close_loop": not args.no_effects,
-    }
+    options = discovery_options(args)
     items = discover_many(
         args.files,
         load_options=load_options,

@@ -15,10 +15,14 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from hystdisc.cli.common import add_data_options, load_data, progress_printer
-from hystdisc.discovery import ALL_FAMILIES, Discovery
+from hystdisc.cli.common import (
+    add_discovery_options,
+    discovery_options,
+    load_data,
+    progress_printer,
+)
+from hystdisc.discovery import Discovery
 from hystdisc.errors import HystdiscError
-from hystdisc.models import FAMILIES
 
 HELP = "discover the model and write an HTML model-comparison report (+ Markdown summary)"
 
@@ -46,23 +50,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
         metavar="PATH",
         help="HTML report (default: report.html; the summary goes to PATH with .md)",
     )
-    p.add_argument(
-        "--model", help=f"declare the family instead of selecting one: {', '.join(FAMILIES)}"
-    )
-    p.add_argument(
-        "--families",
-        metavar="LIST",
-        help=f"families to compare, comma separated (default: {','.join(ALL_FAMILIES)})",
-    )
-    add_data_options(p)
-    p.add_argument("--seed", type=int, default=0, help="seed of the resampling (default 0)")
-    p.add_argument("--ensemble", action="store_true", help="inclusion probabilities by bagging")
-    p.add_argument("--no-heldout", action="store_true", help="skip leave-one-run-out errors")
-    p.add_argument(
-        "--no-effects",
-        action="store_true",
-        help="skip the closing loop (residual -> catalogued effects)",
-    )
+    add_discovery_options(p)
     p.add_argument(
         "--max-runs",
         type=int,
@@ -86,20 +74,8 @@ def run(args: argparse.Namespace) -> int:
     if args.max_runs < 1:
         raise HystdiscError(f"--max-runs {args.max_runs} is below 1; fix: give 1 or more")
     data = load_data(args, args.files)
-    families = None
-    if args.families:
-        families = [f.strip() for f in args.families.split(",") if f.strip()]
     say = progress_printer(args.quiet)
-    disc = Discovery(
-        experiment=args.experiment,
-        families=families,
-        model=args.model,
-        ensemble=args.ensemble,
-        heldout=not args.no_heldout,
-        seed=args.seed,
-        progress=say,
-        close_loop=not args.no_effects,
-    ).fit(data)
+    disc = Discovery(**discovery_options(args), progress=say).fit(data)
     path = write_report(
         disc,
         data,
