@@ -284,13 +284,7 @@ def _with_effects(fit: OEFit, extra: Sequence[str], values: dict[str, float] | N
     for e in extra:
         for p in EFFECTS[e].params:
             start[p.name] = (values or {}).get(p.name, 0.0)
-    par = FamilyParametrization(
-        par0.family,
-        par0.experiment,
-        start,
-        effects=tuple(par0.effects) + tuple(extra),
-        fixed=par0.fixed,
-    )
+    par = par0.like(start, tuple(par0.effects) + tuple(extra))
     n0 = len(par0.names)
     if list(par.names[:n0]) != list(par0.names):  # pragma: no cover - guards a layout change
         raise RuntimeError("effect parameters are not appended after the model's parameters")
@@ -440,13 +434,7 @@ def _start_rss(data: FitData, fit: OEFit, effects: Sequence[str], start: dict) -
     """Output-error RSS of ``fit``'s structure plus ``effects`` at the parameters ``start``."""
     par0 = fit.par
     extra = [e for e in effects if e not in par0.effects]
-    par = FamilyParametrization(
-        par0.family,
-        par0.experiment,
-        start,
-        effects=tuple(par0.effects) + tuple(extra),
-        fixed=par0.fixed,
-    )
+    par = par0.like(start, tuple(par0.effects) + tuple(extra))
     v = np.concatenate([par.x0, np.asarray(fit.nuisance, dtype=float).ravel()])
     with np.errstate(all="ignore"):
         r = OutputErrorFitter(data, par).residuals(v)
@@ -634,9 +622,7 @@ def refit_with(
     best = None
     for _, st in groups:
         par0 = fit.par
-        par = FamilyParametrization(
-            par0.family, par0.experiment, st, effects=(*par0.effects, effect), fixed=par0.fixed
-        )
+        par = par0.like(st, (*par0.effects, effect))
         with np.errstate(all="ignore"):
             new = OutputErrorFitter(data, par, max_nfev=max_nfev).fit(heldout=heldout)
         if best is None or (np.isfinite(new.bic) and new.bic < best.bic):
@@ -870,9 +856,7 @@ def wald_chi2(fit: OEFit, effect: str) -> float:
 def _refit_without(data: FitData, fit: OEFit, like: OEFit, max_nfev: int, heldout: bool):
     """Refit the structure of ``like`` started from ``fit`` (which has one effect more)."""
     par0 = like.par
-    par = FamilyParametrization(
-        par0.family, par0.experiment, dict(fit.params), effects=par0.effects, fixed=par0.fixed
-    )
+    par = par0.like(dict(fit.params), par0.effects)
     return OutputErrorFitter(data, par, max_nfev=max_nfev).fit(heldout=heldout)
 
 
@@ -891,9 +875,7 @@ def _backward(data, fit, out: LoopResult, max_nfev, heldout, say, fits: dict) ->
         say(f"closing the loop: {name} became redundant, refit without it")
         par0 = fit.par
         start = {k: v for k, v in fit.params.items()}
-        par = FamilyParametrization(
-            par0.family, par0.experiment, start, effects=tuple(keep), fixed=par0.fixed
-        )
+        par = par0.like(start, tuple(keep))
         with np.errstate(all="ignore"):
             new = OutputErrorFitter(data, par, max_nfev=max_nfev).fit(heldout=heldout)
         if not (_fit_ok(new, fit) and new.bic < fit.bic):

@@ -310,6 +310,31 @@ def describe_structure(torque: Sequence[str], shape: str) -> str:
     return f"{SHAPES[shape].name} hysteresis with torque terms {sorted(tset)}"
 
 
+def _normalization(name: str, start: dict[str, float]) -> tuple[dict[str, float], str]:
+    """Scale of z for the output-error fit of ``name`` started at ``start``.
+
+    Bouc-Wen loops that saturate are fitted with ``z_sat = 1``; loops that never saturate
+    (``beta + gamma <= 0``) have no such scale, so z is taken in torque units
+    (``alpha_1 = 1``) and the start is rescaled to it.
+    """
+    fam = FAMILIES[name]
+    if not name.startswith("bouc-wen"):
+        return start, "z_sat"
+    zs = fam.z_sat(start["delta"], start["beta"], start["gamma"], start["n"])
+    a = start.get("alpha_1", 0.0)
+    if np.isfinite(zs) and zs > 0:
+        return start, "z_sat"
+    q = dict(start)
+    if np.isfinite(a) and a > 0:
+        n = start["n"]
+        q["delta"] = start["delta"] * a
+        q["beta"] = start["beta"] * a ** (1.0 - n)
+        q["gamma"] = start["gamma"] * a ** ((1.0 - n) if name == "bouc-wen-std" else -n)
+        q["alpha_2"] = start.get("alpha_2", 0.0) / a
+    q["alpha_1"] = 1.0
+    return q, "alpha_1"
+
+
 # ----------------------------------------------------------------------------- estimator
 
 
@@ -343,6 +368,9 @@ class Discovery:
     close_loop : bool
         After the fit, diagnose the residual against the effect catalogue, add effects
         that improve BIC and test the final residual for whiteness (:mod:`hystdisc.closing`).
+    input_hold : {'cubic', 'linear', 'zoh'}
+        Forced experiments: how the input is interpolated between its samples (a cubic
+        spline for a sampled smooth force; ``zoh`` for a DAC output held between samples).
     """
 
     def __init__(
@@ -359,6 +387,7 @@ class Discovery:
         progress: Callable[[str], None] | None = None,
         max_nfev: int = 40,
         close_loop: bool = True,
+        input_hold: str = "cubic",
     ) -> None:
         self.experiment = experiment
         self.families = families
@@ -372,6 +401,7 @@ class Discovery:
         self.progress = progress
         self.max_nfev = max_nfev
         self.close_loop = close_loop
+        self.input_hold = input_hold
 
     # -- helpers
     def _say(self, msg: str) -> None:
@@ -413,6 +443,7 @@ class Discovery:
             [],
             [],
             noise,
+            self.input_hold,
         )
         windows = []
         for r in runs:
@@ -515,8 +546,10 @@ class Discovery:
             fams = [get_family(self.model).name]
         else:
             fams = [get_family(f).name for f in (self.families or ALL_FAMILIES)]
-        # selecting a family needs several currents; a declared family can do with one
-        validate(dataset, need_currents=1 if self.model is not None else 2)
+        # selecting a family needs several currents, unless the user declared the family or
+        # named the families to compare (a rig without a coil, e.g. a hysteretic benchmark)
+        explicit = self.model is not None or self.families is not None
+        validate(dataset, need_currents=1 if explicit else 2)
         self.single_current_ = len(distinct_currents(dataset.currents)) < 2
         if self.single_current_:
             warnings.warn(
@@ -561,7 +594,8 @@ class Discovery:
             self._say(f"stage 2: output-error fit of {name} ({k + 1}/{len(fams)})")
             start = self._family_start(eq, name)
             fixed = {p: 0.0 for p in FAMILIES[name].current_params} if self.single_current_ else {}
-            par = FamilyParametrization(name, eq.experiment, start, fixed=fixed)
+            start, norm = _normalization(name, start)
+            par = FamilyParametrization(name, eq.experiment, start, fixed=fixed, normalization=norm)
             fitter = OutputErrorFitter(fd, par, max_nfev=self.max_nfev)
             self.family_fits_[name] = fitter.fit(heldout=self.heldout)
         # stage 2 of the discovered structure itself (a family's fit when it is one)
@@ -621,7 +655,7 @@ class Discovery:
             fit = self.final_fit_  # the selected family with its accepted effects
         else:
             fit = self.family_fits_[family or self.family_]
-        return predict_dataset(fit.term_model, dataset, self.experiment_)
+        return predict_dataset(fit.term_model, dataset, self.experiment_, self.input_hold)
 
     def score(self, dataset: Dataset) -> float:
         """Coefficient of determination R^2 of the simulated output on ``dataset``."""

@@ -27,7 +27,13 @@ from hystdisc.models import (
     TermModel,
     get_family,
 )
-from hystdisc.simulation import N_BASE, base_coefficients, driven_batch, mech_batch
+from hystdisc.simulation import (
+    N_BASE,
+    base_coefficients,
+    driven_batch,
+    input_slopes,
+    mech_batch,
+)
 
 Z95 = 1.959963984540054
 #: Sub-step ratio used while fitting (errors ~1e-6 of the signal, far below any noise).
@@ -54,7 +60,17 @@ class FitData:
     u: list[np.ndarray]  # forced: input; else zeros
     mask: list[np.ndarray]  # samples that enter the residual
     noise_std: float = 0.0
-    hold: str = "linear"
+    hold: str = "cubic"
+    du: list[np.ndarray] | None = None  # forced: spline slopes of the input (cached)
+
+    def input_slopes(self) -> list[np.ndarray]:
+        """Per-run slopes of the input's cubic spline (computed once)."""
+        if self.du is None:
+            self.du = [
+                input_slopes(t, u, np.array([0, t.size]))
+                for t, u in zip(self.t, self.u, strict=True)
+            ]
+        return self.du
 
     @property
     def n_runs(self) -> int:
@@ -74,23 +90,29 @@ class FitData:
             pick(self.mask),
             self.noise_std,
             self.hold,
+            None if self.du is None else pick(self.du),
         )
 
-    def n_nuisance(self) -> int:
-        """Nuisance parameters per run (initial state)."""
-        return {"release": 1, "forced": 2, "driven": 0}[self.experiment]
+    def _per_run(self, state: bool) -> list[str]:
+        if self.experiment == "forced":
+            # a forced record may start mid-motion: the whole initial state is unknown
+            return ["theta0", "theta_dot0", "z0"] if state else ["theta0", "theta_dot0"]
+        return {"release": ["theta0"], "driven": []}[self.experiment]
 
-    def nuisance_names(self) -> list[str]:
-        per = {"release": ["theta0"], "forced": ["theta0", "theta_dot0"], "driven": []}
-        return [f"{p}[{n}]" for n in self.names for p in per[self.experiment]]
+    def n_nuisance(self, state: bool = False) -> int:
+        """Nuisance parameters per run (initial state; ``state``: the model has a z)."""
+        return len(self._per_run(state))
 
-    def nuisance_start(self) -> np.ndarray:
+    def nuisance_names(self, state: bool = False) -> list[str]:
+        return [f"{p}[{n}]" for n in self.names for p in self._per_run(state)]
+
+    def nuisance_start(self, state: bool = False) -> np.ndarray:
         out = []
         for k in range(self.n_runs):
             if self.experiment == "release":
                 out.append(self.theta[k][0])
             elif self.experiment == "forced":
-                out.extend([self.theta[k][0], self.theta_dot[k][0]])
+                out.extend([self.theta[k][0], self.theta_dot[k][0]] + ([0.0] if state else []))
         return np.array(out, dtype=float)
 
 
@@ -138,8 +160,13 @@ def simulate_entries(
             )
         else:
             u = np.concatenate([data.u[r] for r in runs])
+            du = None
+            if data.experiment == "forced" and data.hold == "cubic":
+                slopes = data.input_slopes()
+                du = np.concatenate([slopes[r] for r in runs])
             th0 = np.array([v[0] for v in nuis])
             w0 = np.array([v[1] if len(v) > 1 else 0.0 for v in nuis])
+            z0 = np.array([v[2] if len(v) > 2 else 0.0 for v in nuis])
             out, _, _, status = mech_batch(
                 coef,
                 b,
@@ -150,11 +177,12 @@ def simulate_entries(
                 offsets,
                 th0,
                 w0,
-                np.zeros(ne),
+                z0,
                 hold=data.hold,
                 ratio=FIT_RATIO,
                 min_sub=1,
                 max_sub=FIT_MAX_SUB,
+                du=du,
             )
     res = [out[offsets[e] : offsets[e + 1]] for e in range(ne)]
     bad = []
@@ -224,6 +252,7 @@ class FamilyParametrization(Parametrization):
             self.fixed.setdefault("alpha_1", 1.0)
         self.experiment = experiment
         self.effects = tuple(effects)
+        self.norm = normalization if bw else "z_sat"
         self.derived = ["delta"] if bw and normalization == "z_sat" else []
         self.normalization = (
             "alpha_1 = 1 (z in torque units)"
@@ -244,6 +273,12 @@ class FamilyParametrization(Parametrization):
         self.upper = np.array([p.upper for p in specs], dtype=float)
         x0 = [start.get(p.name, p.default) for p in specs]
         self.x0 = _clip_start(x0, self.lower, self.upper)
+
+    def like(self, start: dict[str, float], effects: tuple[str, ...]) -> FamilyParametrization:
+        """The same family, normalization and fixed parameters with other ``effects``."""
+        return FamilyParametrization(
+            self.family, self.experiment, start, effects, self.fixed, self.norm
+        )
 
     def params(self, x):
         p = dict(zip(self.names, map(float, x), strict=True))
@@ -431,7 +466,8 @@ class OutputErrorFitter:
         self.max_nfev = max_nfev
         self.rel_step = rel_step
         self.npar = len(par.names)
-        self.nnu = data.n_nuisance()
+        self.state = bool(par.terms(par.x0).hysteresis)
+        self.nnu = data.n_nuisance(self.state)
         self.masks = data.mask
         self._rows = np.cumsum([0] + [int(m.sum()) for m in data.mask])
 
@@ -500,7 +536,7 @@ class OutputErrorFitter:
         return Jm
 
     def fit(self, heldout: bool = True) -> OEFit:
-        p0 = np.concatenate([self.par.x0, self.data.nuisance_start()])
+        p0 = np.concatenate([self.par.x0, self.data.nuisance_start(self.state)])
         lo = np.concatenate([self.par.lower, np.full(self.nnu * self.data.n_runs, -np.inf)])
         hi = np.concatenate([self.par.upper, np.full(self.nnu * self.data.n_runs, np.inf)])
         v, nfev, ok = levenberg_marquardt(

@@ -86,7 +86,10 @@ class HysteresisShape:
     """A hysteresis-side candidate: its terms and the map shape constants -> rate coefficients.
 
     Shape constants are handled in an unconstrained space: rates as ``log`` values, the
-    Bouc-Wen split ``phi = beta / delta`` as is, the exponent as ``log n``.
+    exponent as ``log n``. The seed-form Bouc-Wen splits ``delta`` as ``beta = phi * delta``,
+    ``gamma = (1 - phi) * delta`` (``z_sat = 1``). The standard form uses an angle instead,
+    ``beta = delta cos(psi)``, ``gamma = delta sin(psi)``, which also covers loops that never
+    saturate (``beta + gamma <= 0``, as in the Noel-Schoukens hysteretic benchmark).
     """
 
     name: str
@@ -102,13 +105,11 @@ class HysteresisShape:
             rho = float(np.exp(s[0]))
             b[0], b[1] = rho, -rho
             return b, 1.0
-        delta = float(np.exp(s[0]))
-        phi = float(s[1])
-        n = float(np.clip(np.exp(s[2]), N_RANGE[0], N_RANGE[1]))
-        b[0] = delta
-        b[2] = -phi * delta  # -beta
-        b[3 if self.name == "bouc-wen" else 4] = -(1.0 - phi) * delta  # -gamma; z_sat = 1
-        return b, n
+        d = self.shape_dict(s)
+        b[0] = d["delta"]
+        b[2] = -d["beta"]
+        b[3 if self.name == "bouc-wen" else 4] = -d["gamma"]
+        return b, d["n"]
 
     def grid(self, scale: float) -> list[np.ndarray]:
         """Starting grid of shape constants for a displacement amplitude ``scale``."""
@@ -117,9 +118,16 @@ class HysteresisShape:
         rates = np.log(np.geomspace(0.3, 300.0, 13) / max(scale, 1e-12))
         if self.name == "dahl":
             return [np.array([r]) for r in rates]
+        # seed form: phi; standard form: psi (saturating at 0..120 deg and -30 deg, never
+        # saturating at 150, 170 and -70 deg)
+        splits = (
+            (-0.5, 0.0, 0.5, 0.9)
+            if self.name == "bouc-wen"
+            else np.deg2rad((0.0, 45.0, 90.0, 120.0, -30.0, 150.0, 170.0, -70.0))
+        )
         out = []
         for r in rates[::2]:
-            for phi in (-0.5, 0.0, 0.5, 0.9):
+            for phi in splits:
                 for n in (0.5, 1.0, 2.0):
                     out.append(np.array([r, phi, np.log(n)]))
         return out
@@ -132,8 +140,11 @@ class HysteresisShape:
             return s
         lo = np.log(0.1 / max(scale, 1e-12))
         s[0] = np.clip(s[0], lo, lo + np.log(3e3))
-        if self.name != "dahl":
+        if self.name == "bouc-wen":
             s[1] = np.clip(s[1], -3.0, 3.0)
+        elif self.name == "bouc-wen-std":
+            s[1] = np.angle(np.exp(1j * s[1]))  # wrap to (-pi, pi]
+        if self.name != "dahl":
             s[2] = np.clip(s[2], np.log(N_RANGE[0]), np.log(N_RANGE[1]))
         return s
 
@@ -144,10 +155,14 @@ class HysteresisShape:
         if self.name == "dahl":
             return {"rho": float(np.exp(s[0]))}
         delta = float(np.exp(s[0]))
+        if self.name == "bouc-wen-std":
+            beta, gamma = delta * float(np.cos(s[1])), delta * float(np.sin(s[1]))
+        else:
+            beta, gamma = float(s[1]) * delta, (1.0 - float(s[1])) * delta
         return {
             "delta": delta,
-            "beta": float(s[1]) * delta,
-            "gamma": (1.0 - float(s[1])) * delta,
+            "beta": beta,
+            "gamma": gamma,
             "n": float(np.clip(np.exp(s[2]), N_RANGE[0], N_RANGE[1])),
         }
 
@@ -163,7 +178,7 @@ SHAPES: dict[str, HysteresisShape] = {
     "bouc-wen-std": HysteresisShape(
         "bouc-wen-std",
         ("theta_dot", "theta_dot*|z|^n", "|theta_dot|*z*|z|^(n-1)"),
-        ("log_delta", "phi", "log_n"),
+        ("log_delta", "psi", "log_n"),
     ),
 }
 

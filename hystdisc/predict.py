@@ -16,7 +16,7 @@ from hystdisc.simulation import simulate_driven_runs, simulate_mech
 
 
 def predict_dataset(
-    tm: TermModel, dataset: Dataset, experiment: str | None = None
+    tm: TermModel, dataset: Dataset, experiment: str | None = None, input_hold: str = "cubic"
 ) -> list[np.ndarray]:
     """Predicted measured signal (theta, or torque for driven) of every run of ``dataset``.
 
@@ -53,6 +53,7 @@ def predict_dataset(
             [d.theta[0] for d in ders],
             inputs=[r.input for r in runs],
             theta_dot0=[d.theta_dot[0] for d in ders],
+            hold=input_hold,
         )
         return [o.theta for o in out]
     out, _ = simulate_mech(

@@ -340,6 +340,8 @@ def _simulated_damper(fit, fd, runs: Sequence[int]) -> list[Any]:
     kw: dict[str, Any] = {}
     if fd.experiment == "forced":
         kw = {"inputs": [fd.u[r] for r in runs], "theta_dot0": [nu[r, 1] for r in runs]}
+        if nu.shape[1] > 2:
+            kw["z0"] = [nu[r, 2] for r in runs]
     out, status = simulate_mech(
         fit.term_model,
         [fd.t[r] for r in runs],

@@ -375,6 +375,7 @@ def build_results(disc, dataset) -> Results:
         "version": __version__,
         "input": dataset.source,
         "experiment": disc.experiment_,
+        **({"input_hold": disc.input_hold} if disc.experiment_ == "forced" else {}),
         "noise_std": disc.noise_std_,
         "terms": disc.terms_,
         "discovered": {

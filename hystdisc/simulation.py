@@ -6,8 +6,9 @@ Three experiment types (DESIGN.md section 1):
     ``theta'' = -T(theta, theta', z, i)`` per unit inertia (the spring is the ``theta``
     torque term), from ``theta0`` at rest with ``z = 0``.
 ``forced``
-    ``J theta'' = u(t) - T(...)`` with a known input ``u`` (held linearly between samples,
-    or zero-order held).
+    ``J theta'' = u(t) - T(...)`` with a known input ``u`` between samples: a cubic spline
+    through the samples (``hold='cubic'``, the default: a sampled smooth force), linear
+    (``'linear'``) or zero-order held (``'zoh'``, a DAC output).
 ``driven``
     ``theta(t)`` is imposed; only ``z`` is integrated and the torque ``T`` is returned.
 
@@ -37,6 +38,7 @@ from dataclasses import dataclass
 
 import numba
 import numpy as np
+from scipy.interpolate import CubicSpline
 
 from hystdisc.errors import HystdiscError
 from hystdisc.models import SIGN_EPS, Model, TermModel
@@ -48,6 +50,8 @@ N_BASE = 8
 
 #: Target of ``h * lambda`` per RK4 sub-step (smaller is more accurate).
 STEP_RATIO = 0.2
+#: How a forced run's input is interpolated between samples (kernel codes).
+HOLDS = {"linear": 0, "zoh": 1, "cubic": 2}
 MIN_SUBSTEPS = 2
 MAX_SUBSTEPS = 500
 
@@ -147,6 +151,22 @@ def _n_sub(c, b, n, J, th, w, z, h, eps, mech, u, ratio, min_sub, max_sub):
     return m
 
 
+@numba.njit(cache=True, inline="always")
+def _input(ua, ub, ma, mb, f, hold):
+    """Input at fraction ``f`` of a sample interval: linear (0), held (1) or cubic Hermite (2)
+    with end slopes ``ma``, ``mb`` already multiplied by the interval length."""
+    if hold == 2:
+        f2 = f * f
+        f3 = f2 * f
+        return (
+            (2.0 * f3 - 3.0 * f2 + 1.0) * ua
+            + (f3 - 2.0 * f2 + f) * ma
+            + (-2.0 * f3 + 3.0 * f2) * ub
+            + (f3 - f2) * mb
+        )
+    return ua + (ub - ua) * f
+
+
 @numba.njit(cache=True)
 def _mech_batch(
     coef,
@@ -155,6 +175,7 @@ def _mech_batch(
     JJ,
     t,
     u,
+    du,
     offsets,
     th0,
     w0,
@@ -188,16 +209,15 @@ def _mech_batch(
         for k in range(k0, k1 - 1):
             h = t[k + 1] - t[k]
             ua = u[k]
-            ub = u[k + 1] if hold == 0 else u[k]
+            ub = u[k + 1] if hold != 1 else u[k]
+            ma = h * du[k] if hold == 2 else 0.0
+            mb = h * du[k + 1] if hold == 2 else 0.0
             m = _n_sub(c, b, n, J, th, w, z, h, eps, True, ua, ratio, min_sub, max_sub)
             hs = h / m
             for s in range(m):
-                fa = s / m
-                fb = (s + 0.5) / m
-                fc = (s + 1.0) / m
-                u1 = ua + (ub - ua) * fa
-                u2 = ua + (ub - ua) * fb
-                u3 = ua + (ub - ua) * fc
+                u1 = _input(ua, ub, ma, mb, s / m, hold)
+                u2 = _input(ua, ub, ma, mb, (s + 0.5) / m, hold)
+                u3 = _input(ua, ub, ma, mb, (s + 1.0) / m, hold)
                 k1t = w
                 k1w = (u1 - _torque(c, th, w, z, eps)) / J
                 k1z = _rate(b, n, w, z)
@@ -352,6 +372,27 @@ def concat_runs(arrays: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     return flat, offsets
 
 
+def input_slopes(t: np.ndarray, u: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+    """Slopes ``du/dt`` at the samples of the not-a-knot cubic spline through each run's input.
+
+    Examples
+    --------
+    >>> t = np.linspace(0.0, 1.0, 11)
+    >>> s = input_slopes(t, t**2, np.array([0, 11]))
+    >>> bool(np.allclose(s, 2 * t))
+    True
+    """
+    du = np.zeros_like(u)
+    for a, b in zip(offsets[:-1], offsets[1:], strict=True):
+        if not np.any(u[a:b]):
+            continue
+        if b - a >= 4:
+            du[a:b] = CubicSpline(t[a:b], u[a:b])(t[a:b], 1)
+        elif b - a >= 2:
+            du[a:b] = np.gradient(u[a:b], t[a:b])
+    return du
+
+
 def mech_batch(
     coef: np.ndarray,
     b: np.ndarray,
@@ -363,20 +404,28 @@ def mech_batch(
     theta0: np.ndarray,
     theta_dot0: np.ndarray,
     z0: np.ndarray,
-    hold: str = "linear",
+    hold: str = "cubic",
     eps: float = SIGN_EPS,
     ratio: float = STEP_RATIO,
     min_sub: int = MIN_SUBSTEPS,
     max_sub: int = MAX_SUBSTEPS,
+    du: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Low-level batched release/forced simulation, one model per run (rows of ``coef``, ``b``).
 
     Returns flat ``theta, theta_dot, z`` and the per-run status (0 ok, 1 diverged).
+    ``du`` are the input's spline slopes (:func:`input_slopes`) when already known.
     """
+    if hold not in HOLDS:
+        raise HystdiscError(f"unknown input hold '{hold}'; fix: use one of {', '.join(HOLDS)}")
     th = np.empty_like(t)
     w = np.empty_like(t)
     z = np.empty_like(t)
     status = np.zeros(len(offsets) - 1, dtype=np.int64)
+    if hold != "cubic":
+        du = np.zeros(1)
+    elif du is None:
+        du = input_slopes(t, u, offsets)
     _mech_batch(
         np.ascontiguousarray(coef, dtype=float),
         np.ascontiguousarray(b, dtype=float),
@@ -384,11 +433,12 @@ def mech_batch(
         np.asarray(J, dtype=float),
         t,
         u,
+        du,
         offsets,
         np.asarray(theta0, dtype=float),
         np.asarray(theta_dot0, dtype=float),
         np.asarray(z0, dtype=float),
-        0 if hold == "linear" else 1,
+        HOLDS[hold],
         eps,
         ratio,
         min_sub,
@@ -475,7 +525,7 @@ def simulate_mech(
     inputs: list[np.ndarray] | None = None,
     theta_dot0: list[float] | None = None,
     z0: list[float] | None = None,
-    hold: str = "linear",
+    hold: str = "cubic",
     eps: float = SIGN_EPS,
     raise_on_divergence: bool = True,
 ) -> tuple[list[SimResult], np.ndarray]:

@@ -192,7 +192,7 @@ def forced_errors() -> dict[str, list[float]]:
     errs: dict[str, list[float]] = {f: [] for f in FAMILY_NAMES}
     for k, (fam, i, model) in enumerate(cases):
         assert model.to_terms().J == J_FORCED
-        (sim,), _ = simulate_mech(model, [T], [i], [0.0], inputs=[inputs[k]])
+        (sim,), _ = simulate_mech(model, [T], [i], [0.0], inputs=[inputs[k]], hold="linear")
         assert np.ptp(sim.theta) > 0.2  # the input really moves the rig
         errs[fam].append(float(np.max(np.abs(sim.theta - ref[k]))))
     return errs
@@ -242,6 +242,50 @@ def test_release_matches_dop853(family, release_errors):
 def test_forced_matches_dop853(family, forced_errors):
     errs = forced_errors[family]
     assert max(errs) < TOL_THETA, f"{family}: max |theta error| {errs} rad at {CURRENTS} A"
+
+
+def test_cubic_hold_follows_a_smooth_input():
+    """A force measured by a load cell is smooth between its samples: the default cubic
+    spline through the samples must follow the continuous input far better than linear
+    interpolation (whose half-sample smoothing shifts a resonant response)."""
+    fs, i = 200.0, 0.5
+    t = np.arange(1200) / fs
+    omega = 2 * np.pi * np.array([3.0, 17.0])
+
+    def force(tt):
+        return 25.0 * np.sin(omega[0] * tt) + 15.0 * np.sin(omega[1] * tt + 0.3)
+
+    model = Model("dahl", {"J": J_FORCED})
+    a, b, n, _ = _coefficients([("dahl", i, model)])
+
+    def rhs(tt, y):
+        th, w, z = y
+        acc = (force(tt) - _ref_torque(a[0], th, w, z, i, SIGN_EPS)) / J_FORCED
+        return [w, acc, _ref_rate(b[0], n[0], w, z)]
+
+    sol = solve_ivp(
+        rhs,
+        (t[0], t[-1]),
+        [0.0, 0.0, 0.0],
+        method="DOP853",
+        rtol=1e-10,
+        atol=1e-12,
+        max_step=0.5 / fs,
+        t_eval=t,
+    )
+    assert sol.status == 0, sol.message
+    err = {}
+    for hold in ("linear", "cubic"):
+        (sim,), _ = simulate_mech(model, [t], [i], [0.0], inputs=[force(t)], hold=hold)
+        err[hold] = float(np.max(np.abs(sim.theta - sol.y[0])))
+    assert np.ptp(sol.y[0]) > 0.1
+    assert err["cubic"] < err["linear"] / 20, err
+    assert err["cubic"] < 1e-4 * np.ptp(sol.y[0]), err
+
+
+def test_unknown_hold_is_refused():
+    with pytest.raises(HystdiscError, match="unknown input hold 'spline'"):
+        simulate_mech(Model("dahl"), [T], [0.0], [0.0], inputs=[np.zeros_like(T)], hold="spline")
 
 
 # The driven kernel splits each sample interval at a velocity reversal (|theta_dot| has a

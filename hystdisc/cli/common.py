@@ -96,6 +96,13 @@ def add_discovery_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--ensemble", action="store_true", help="inclusion probabilities by bagging")
     p.add_argument("--no-heldout", action="store_true", help="skip leave-one-run-out errors")
     p.add_argument(
+        "--input-hold",
+        choices=("cubic", "linear", "zoh"),
+        default="cubic",
+        help="forced experiments: the input between samples (default cubic: a sampled smooth "
+        "force; zoh: a DAC output held between samples)",
+    )
+    p.add_argument(
         "--no-effects",
         action="store_true",
         help="skip the closing loop (residual -> catalogued effects)",
@@ -116,4 +123,5 @@ def discovery_options(args: argparse.Namespace) -> dict:
         "heldout": not args.no_heldout,
         "seed": args.seed,
         "close_loop": not args.no_effects,
+        "input_hold": args.input_hold,
     }

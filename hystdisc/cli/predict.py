@@ -16,6 +16,7 @@ from hystdisc.errors import HystdiscError
 from hystdisc.io import atomic_write_text
 from hystdisc.predict import predict_dataset
 from hystdisc.results import Results
+from hystdisc.simulation import HOLDS
 
 
 def add_parser(sub) -> argparse.ArgumentParser:
@@ -49,7 +50,12 @@ def run(args: argparse.Namespace) -> int:
     if args.experiment is None:
         args.experiment = res.experiment
     data = load_data(args, args.data)
-    preds = predict_dataset(tm, data, res.experiment)
+    hold = res.summary().get("input_hold", "cubic")
+    if hold not in HOLDS:
+        raise HystdiscError(
+            f"{args.results}: unknown input_hold {hold!r}; fix: use one of {', '.join(HOLDS)}"
+        )
+    preds = predict_dataset(tm, data, res.experiment, hold)
     meas = data.measured()
     lines = [f"run,t,current,{meas},{meas}_pred"]
     rms = []
