@@ -487,6 +487,35 @@ class BoucWenStd(BoucWen):
             "dz/dt = delta*theta_dot - beta*theta_dot*|z|^n - gamma*|theta_dot|*z*|z|^(n-1)"
         )
 
+    def force_form(self, p: Mapping[str, float], current: float = 0.0) -> dict[str, float]:
+        """The structural-dynamics form with z in force units (e.g. the hysteretic benchmark).
+
+        ``m y'' + c y' + k y + z = u``, ``z' = alpha y' - gamma_beta |y'| |z|^(nu-1) z
+        - delta_beta y' |z|^nu``: the benchmark's ``beta*gamma`` and ``beta*delta`` are the
+        identifiable products (its ``beta``, ``gamma``, ``delta`` one by one are not).
+        ``p`` holds the family parameters plus ``k_s`` and ``J`` (a forced fit).
+
+        Examples
+        --------
+        >>> fam = get_family("bouc-wen-std")
+        >>> p = {"alpha_1": 1.0, "alpha_2": 0.0, "c_1": 10.0, "c_2": 0.0, "beta": -1100.0,
+        ...      "gamma": 800.0, "delta": 5e4, "n": 1.0, "k_s": 5e4, "J": 2.0}
+        >>> fam.force_form(p)
+        {'m': 2.0, 'c': 10.0, 'k': 50000.0, 'alpha': 50000.0, 'beta*gamma': 800.0, 'beta*delta': -1100.0, 'nu': 1.0}
+        """
+        a = p["alpha_1"] + current * p.get("alpha_2", 0.0)  # z_force = a * z
+        n = p["n"]
+        s = a ** (1.0 - n)
+        return {
+            "m": float(p.get("J", 1.0)),
+            "c": float(p["c_1"] + current * p.get("c_2", 0.0)),
+            "k": float(p.get("k_s", 0.0)),
+            "alpha": float(a * p["delta"]),
+            "beta*gamma": float(p["gamma"] * s),
+            "beta*delta": float(p["beta"] * s),
+            "nu": float(n),
+        }
+
 
 FAMILIES: dict[str, Family] = {
     f.name: f for f in (Bingham(), Dahl(), LuGre(), BoucWen(), BoucWenStd())

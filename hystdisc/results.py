@@ -349,7 +349,7 @@ def _family_entry(name: str, fit, discovered_terms: dict) -> dict:
     dh = set(discovered_terms["hysteresis"])
     return {
         "parameters": params,
-        "normalization": fam.normalization,
+        "normalization": getattr(fit.par, "normalization", "") or fam.normalization,
         "rms": fit.rms,
         "bic": fit.bic,
         "heldout_rms": fit.heldout_rms,

@@ -11,7 +11,7 @@ import pytest
 matplotlib.use("Agg")
 
 
-@pytest.fixture
+@pytest.fixture(scope="session")
 def data_dir() -> Path:
     """The measured data folder (``../shared/data``), found through ``HYSTDISC_DATA``."""
     value = os.environ.get("HYSTDISC_DATA")

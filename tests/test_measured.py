@@ -1,0 +1,79 @@
+"""Measured and benchmark data end to end (issue 5); skipped without ``HYSTDISC_DATA``.
+
+The numbers asserted here are the ones reported in ``benchmarks/results/`` (with margins),
+so that a regression in loading, discovery or simulation shows.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+import boucwen_benchmark as bwb  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def benchmark_outcome(request):
+    data_dir = request.getfixturevalue("data_dir")
+    folder = data_dir / "boucwen_benchmark"
+    if not folder.is_dir():
+        pytest.skip(f"{folder} is missing")
+    # Dahl as the rival family keeps the test short; the benchmark script compares all five
+    return bwb.run(folder, families=["dahl", "bouc-wen-std"], close_loop=False)
+
+
+def test_benchmark_selects_standard_bouc_wen(benchmark_outcome):
+    d = benchmark_outcome.disc
+    assert d.family_ == "bouc-wen-std"
+    fits = d.family_fits_
+    # reported: 7.36e-6 m against 1.59e-4 m for Dahl
+    assert fits["bouc-wen-std"].rms < 7.6e-6
+    assert fits["dahl"].rms > 10 * fits["bouc-wen-std"].rms
+    # never saturating: z is in newtons (alpha_1 = 1), not normalized to z_sat = 1
+    assert fits["bouc-wen-std"].params["alpha_1"] == 1.0
+
+
+def test_benchmark_parameters_within_one_percent(benchmark_outcome):
+    """Reported errors: m +0.02 %, c +0.15 %, k -0.02 %, alpha +0.04 %, beta*gamma -0.28 %,
+    beta*delta +0.25 %, nu +0.07 %; the issue asks for 5 %."""
+    mapped = benchmark_outcome.mapped
+    truth = dict(bwb.TRUE)
+    truth["beta*gamma"] = bwb.TRUE["beta"] * bwb.TRUE["gamma"]
+    truth["beta*delta"] = bwb.TRUE["beta"] * bwb.TRUE["delta"]
+    assert set(mapped) == {"m", "c", "k", "alpha", "beta*gamma", "beta*delta", "nu"}
+    for key, value in mapped.items():
+        assert value == pytest.approx(truth[key], rel=0.01), key
+    # the intervals are reported for every mapped parameter and contain the estimate
+    for key, (lo, hi) in benchmark_outcome.ci.items():
+        assert lo < mapped[key] < hi, key
+
+
+def test_benchmark_heldout_period_and_independent_signals(benchmark_outcome):
+    """Period 4 predicted from its input alone: reported 2.45e-7 m against the noise-free
+    reference and 7.32e-6 m against the measured period (noise floor 7.31e-6 m); a new
+    multisine 2.4e-7 m and a 20->50 Hz sweep 1.6e-7 m against the true system."""
+    e = benchmark_outcome.errors
+    assert e["period 4 vs noise-free reference"] < 1e-6
+    floor = e["true system vs measured period 4 (noise floor)"]
+    assert 6e-6 < floor < 8.5e-6  # the benchmark's noise, RMS about 7.3e-6 m
+    assert e["period 4 vs measured"] < 1.02 * floor
+    assert e["new multisine vs true system"] < 1e-6
+    assert e["sweep 20-50 Hz vs true system"] < 1e-6
+
+
+def test_true_benchmark_system_matches_the_record(data_dir):
+    """The simulator with a cubic input spline reproduces the benchmark's own generator: the
+    residual of the true system is the measurement noise (period-averaged, it halves)."""
+    ds = bwb.load_benchmark(data_dir / "boucwen_benchmark")
+    u, y = ds.runs[0].input, ds.runs[0].theta
+    pred = bwb.steady_state(bwb.true_model(), u[: bwb.PERIOD])
+    err = np.array([pred - y[k * bwb.PERIOD : (k + 1) * bwb.PERIOD] for k in range(4)])
+    per_period = np.sqrt(np.mean(err**2, axis=1))
+    averaged = np.sqrt(np.mean(err.mean(axis=0) ** 2))
+    assert np.all(per_period < 7.6e-6)
+    # independent noise: averaging 4 periods divides it by 2 (a model error would not shrink)
+    assert averaged == pytest.approx(per_period.mean() / 2, rel=0.05)
