@@ -2,7 +2,8 @@
 
 Release runs start from the run's first (smoothed) angle at rest; driven runs use the
 run's imposed motion (velocity by the same smoothed differentiation as discovery); forced
-runs start from the first angle and smoothed velocity and follow the run's input.
+runs follow the run's input from an initial state (angle, velocity, z) fitted to the first
+half second of the record, since a record may start mid-motion.
 """
 
 from __future__ import annotations
@@ -46,13 +47,15 @@ def predict_dataset(
         )
         return [o.torque for o in out]
     if exp == "forced":
+        states = [initial_state(tm, r, d, input_hold) for r, d in zip(runs, ders, strict=True)]
         out, _ = simulate_mech(
             tm,
             [r.t for r in runs],
             [r.current for r in runs],
-            [d.theta[0] for d in ders],
+            [s[0] for s in states],
             inputs=[r.input for r in runs],
-            theta_dot0=[d.theta_dot[0] for d in ders],
+            theta_dot0=[s[1] for s in states],
+            z0=[s[2] for s in states],
             hold=input_hold,
         )
         return [o.theta for o in out]
@@ -60,3 +63,49 @@ def predict_dataset(
         tm, [r.t for r in runs], [r.current for r in runs], [d.theta[0] for d in ders]
     )
     return [o.theta for o in out]
+
+
+#: Length of the start of a forced record used to estimate its initial state (s).
+STATE_WINDOW = 0.5
+
+
+def initial_state(tm: TermModel, run, der, input_hold: str = "cubic") -> tuple[float, float, float]:
+    """Initial angle, velocity and z of a forced run, fitted to its first ``STATE_WINDOW`` s.
+
+    A forced record may start mid-motion (a periodic excitation in steady state): the state
+    there is the same nuisance that discovery estimates. The model's parameters stay fixed;
+    only these three numbers are fitted, on the start of the record.
+    """
+    from scipy.optimize import least_squares
+
+    n = int(min(run.t.size, max(50, round(STATE_WINDOW * run.fs))))
+    t, u, y = run.t[:n], run.input[:n], run.theta[:n]
+    start = np.array([der.theta[0], der.theta_dot[0], 0.0])
+    free = 3 if tm.hysteresis else 2
+
+    def resid(v):
+        full = np.concatenate([v, start[free:]])
+        (o,), status = simulate_mech(
+            tm,
+            [t],
+            [run.current],
+            [full[0]],
+            inputs=[u],
+            theta_dot0=[full[1]],
+            z0=[full[2]],
+            hold=input_hold,
+            raise_on_divergence=False,
+        )
+        r = o.theta - y
+        return r if not status[0] and np.all(np.isfinite(r)) else np.full(n, 1e6)
+
+    with np.errstate(all="ignore"):
+        sol = least_squares(resid, start[:free], x_scale="jac", max_nfev=50)
+    v = (
+        sol.x
+        if np.all(np.isfinite(sol.x))
+        and sol.cost <= 0.5 * resid(start[:free]) @ resid(start[:free])
+        else start[:free]
+    )
+    full = np.concatenate([v, start[free:]])
+    return float(full[0]), float(full[1]), float(full[2])

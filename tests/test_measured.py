@@ -77,3 +77,14 @@ def test_true_benchmark_system_matches_the_record(data_dir):
     assert np.all(per_period < 7.6e-6)
     # independent noise: averaging 4 periods divides it by 2 (a model error would not shrink)
     assert averaged == pytest.approx(per_period.mean() / 2, rel=0.05)
+
+
+def test_predict_starts_a_mid_motion_record_in_its_own_state(benchmark_outcome, data_dir):
+    """``hystdisc predict`` on period 4 alone (which starts mid-motion): the initial angle,
+    velocity and z are fitted to its first half second, so the prediction matches the
+    noise-free steady state (with z = 0 at the start the error was 1.6e-5 m)."""
+    ds = bwb.load_benchmark(data_dir / "boucwen_benchmark")
+    test = bwb.periods(ds, [3], "period4")
+    pred = benchmark_outcome.disc.predict(test)[0]
+    ref = bwb.steady_state(bwb.true_model(), test.runs[0].input)
+    assert bwb.rms(pred - ref) < 1e-6

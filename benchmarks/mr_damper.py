@@ -1,0 +1,224 @@
+"""The UTFSM MR damper, end to end (issue 5): discover on all 30 sine tests, then validate
+by leaving one test out.
+
+Data: ``$HYSTDISC_DATA/utfsm_mr_damper`` (driven: imposed displacement, measured force;
+six sine tests — 2 mm/5 Hz, 5 mm/3 Hz, 10 mm/1 Hz, 25 mm at 0.1, 0.25, 0.5 Hz — each at
+0, 0.25, 0.5, 0.75 and 1 A), read with ``data_synth/rigs/utfsm_mr_damper.toml``.
+
+1. ``hystdisc discover`` on all 30 files (the README command): family table, the closing
+   loop (RMS force error and NRMSE before/after each accepted effect), held-out errors.
+2. Leave one test out: for each of the six (amplitude, frequency) tests, ``hystdisc
+   discover`` on the other 25 files, then ``hystdisc predict`` on the left-out test's five
+   files with the final model and with the Bingham fit of the same run (the baseline a
+   user would otherwise use).
+
+NRMSE = RMS force error / RMS of the measured force over the same runs.
+
+Run:  HYSTDISC_DATA=../shared/data python benchmarks/mr_damper.py [--folds N] [--no-effects]
+      (writes benchmarks/results/mr_damper.md and keeps the outputs in --work)
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import os
+import re
+import subprocess
+import sys
+import time
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+RIG = ROOT / "data_synth" / "rigs" / "utfsm_mr_damper.toml"
+TEST_RE = re.compile(r"^(\d+(?:x\d+)?mm\d+(?:x\d+)?Hz)(\d+(?:x\d+)?)A$")
+
+
+def tests_of(folder: Path) -> dict[str, list[Path]]:
+    """Files grouped by sine test (amplitude and frequency), currents in order."""
+    groups: dict[str, list[Path]] = defaultdict(list)
+    for f in sorted(folder.glob("*.txt")):
+        m = TEST_RE.match(f.stem)
+        if m:
+            groups[m.group(1)].append(f)
+    return dict(groups)
+
+
+def hystdisc(*args: str, log: Path | None = None) -> tuple[str, float]:
+    """Run the hystdisc command line; return its stdout and the CPU time of the child."""
+    t0 = os.times()
+    proc = subprocess.run(
+        [sys.executable, "-m", "hystdisc", *args], capture_output=True, text=True, check=False
+    )
+    t1 = os.times()
+    if log is not None:
+        log.write_text(proc.stdout + "\n--- stderr ---\n" + proc.stderr, encoding="utf-8")
+    if proc.returncode != 0:
+        raise SystemExit(f"hystdisc {' '.join(args)} failed: {proc.stderr.strip()[-500:]}")
+    return proc.stdout, (t1.children_user - t0.children_user) + (
+        t1.children_system - t0.children_system
+    )
+
+
+def pooled_errors(pred_csv: Path) -> tuple[float, float]:
+    """Pooled RMS force error (N) and NRMSE of a ``hystdisc predict`` output."""
+    err2 = ref2 = 0.0
+    with pred_csv.open(encoding="utf-8") as fh:
+        rows = csv.DictReader(fh)
+        meas, pred = "torque", "torque_pred"
+        n = 0
+        for row in rows:
+            y, p = float(row[meas]), float(row[pred])
+            err2 += (p - y) ** 2
+            ref2 += y * y
+            n += 1
+    return float(np.sqrt(err2 / n)), float(np.sqrt(err2 / ref2))
+
+
+def full_set(files: list[str], work: Path, effects: bool) -> dict:
+    out = work / "full"
+    args = ["discover", *files, "--rig", str(RIG), "--out", str(out), "--force"]
+    if not effects:
+        args.append("--no-effects")
+    t0 = time.perf_counter()
+    stdout, cpu = hystdisc(*args, log=work / "full.log")
+    wall = time.perf_counter() - t0
+    res = json.loads((out / "results.json").read_text(encoding="utf-8"))
+    return {"stdout": stdout, "wall": wall, "cpu": cpu, "results": res}
+
+
+def fold(folder: Path, work: Path, name: str, groups: dict[str, list[Path]], effects: bool):
+    """Discover without test ``name``; predict it with the final model and with Bingham."""
+    train = [str(f) for k, fs in groups.items() if k != name for f in fs]
+    test = [str(f) for f in groups[name]]
+    out = work / f"without_{name}"
+    args = ["discover", *train, "--rig", str(RIG), "--out", str(out), "--force", "--no-heldout"]
+    if not effects:
+        args.append("--no-effects")
+    t0 = time.perf_counter()
+    _, cpu = hystdisc(*args, log=work / f"without_{name}.log")
+    wall = time.perf_counter() - t0
+    res = json.loads((out / "results.json").read_text(encoding="utf-8"))
+    row = {"test": name, "family": res["family"], "effects": res.get("effects", []), "cpu": cpu}
+    row["wall"] = wall
+    for label, extra in (("model", []), ("bingham", ["--family", "bingham"])):
+        pred = work / f"pred_{name}_{label}.csv"
+        hystdisc(
+            "predict",
+            str(out / "results.json"),
+            *test,
+            "--rig",
+            str(RIG),
+            "-o",
+            str(pred),
+            "--force",
+            "--quiet",
+            *extra,
+        )
+        row[label] = pooled_errors(pred)
+    return row
+
+
+def report(full: dict, rows: list[dict], effects: bool) -> str:
+    res = full["results"]
+    fams = res["families"]
+    lines = [
+        "# UTFSM MR damper (30 driven sine tests, 0-1 A)",
+        "",
+        f"`hystdisc discover ../shared/data/utfsm_mr_damper --rig "
+        f"data_synth/rigs/utfsm_mr_damper.toml`{'' if effects else ' --no-effects'}: "
+        f"{full['wall']:.0f} s wall, {full['cpu']:.0f} s CPU (load average "
+        f"{os.getloadavg()[0]:.1f} at the end). Selected: **{res['family']}**"
+        + (f" + {', '.join(res['effects'])}" if res.get("effects") else "")
+        + ".",
+        "",
+        "| family | RMS force error (N) | held-out RMS (N) | BIC |",
+        "|---|---:|---:|---:|",
+    ]
+    for name, f in fams.items():
+        star = " *" if name == res["family"] else ""
+        ho = f.get("heldout_rms")
+        lines.append(
+            f"| {name}{star} | {f['rms']:.1f} | {'-' if ho is None else f'{ho:.1f}'} | "
+            f"{f['bic']:.0f} |"
+        )
+    tried = res.get("effects_tried", [])
+    if tried:
+        lines += [
+            "",
+            "Closing loop (RMS force error before -> after the refit with the effect):",
+            "",
+            "| effect | accepted | RMS before (N) | RMS after (N) | note |",
+            "|---|---|---:|---:|---|",
+        ]
+        for s in tried:
+            lines.append(
+                f"| {s['name']} | {'yes' if s.get('accepted') else 'no'} | "
+                f"{s.get('rms_before', float('nan')):.1f} | {s.get('rms_after', float('nan')):.1f} | "
+                f"{s.get('note', '')} |"
+            )
+    if res.get("unexplained_text"):
+        lines += ["", f"Residual: {res['unexplained_text']}"]
+    if rows:
+        lines += [
+            "",
+            "Leave one test out (discover on the other 25 files, `hystdisc predict` on the five "
+            "left-out files; RMS force error in N and NRMSE = RMS error / RMS force):",
+            "",
+            "| left-out test | selected (+ effects) | model RMS (N) | model NRMSE | "
+            "Bingham RMS (N) | Bingham NRMSE | CPU (s) |",
+            "|---|---|---:|---:|---:|---:|---:|",
+        ]
+        for r in rows:
+            fam = r["family"] + (f" + {', '.join(r['effects'])}" if r["effects"] else "")
+            lines.append(
+                f"| {r['test']} | {fam} | {r['model'][0]:.1f} | {r['model'][1]:.1%} | "
+                f"{r['bingham'][0]:.1f} | {r['bingham'][1]:.1%} | {r['cpu']:.0f} |"
+            )
+        m = np.mean([r["model"][1] for r in rows])
+        b = np.mean([r["bingham"][1] for r in rows])
+        lines.append(f"| mean | | | {m:.1%} | | {b:.1%} | |")
+    return "\n".join(lines) + "\n"
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--data", default=os.environ.get("HYSTDISC_DATA", "../shared/data"))
+    ap.add_argument("--work", default="/tmp/hystdisc_mr_damper", help="folder for the outputs")
+    ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results" / "mr_damper.md"))
+    ap.add_argument("--folds", type=int, default=6, help="how many left-out tests (0-6)")
+    ap.add_argument("--no-effects", action="store_true", help="skip the closing loop")
+    ap.add_argument("--tests", help="comma-separated subset of tests, e.g. 10mm1Hz,2mm5Hz")
+    args = ap.parse_args(argv)
+    folder = Path(args.data) / "utfsm_mr_damper"
+    if not folder.is_dir():
+        print(f"{folder}: not found; fix: set HYSTDISC_DATA", file=sys.stderr)
+        return 2
+    work = Path(args.work)
+    work.mkdir(parents=True, exist_ok=True)
+    effects = not args.no_effects
+    groups = tests_of(folder)
+    if args.tests:
+        groups = {k: v for k, v in groups.items() if k in args.tests.split(",")}
+    files = [str(folder)] if len(groups) == 6 else [str(f) for fs in groups.values() for f in fs]
+    print(f"full set: {sum(map(len, groups.values()))} files", file=sys.stderr, flush=True)
+    full = full_set(files, work, effects)
+    print(full["stdout"], file=sys.stderr, flush=True)
+    rows = []
+    for name in list(groups)[: args.folds]:
+        print(f"leave out {name}", file=sys.stderr, flush=True)
+        rows.append(fold(folder, work, name, groups, effects))
+        Path(args.out).write_text(report(full, rows, effects), encoding="utf-8")
+    text = report(full, rows, effects)
+    Path(args.out).write_text(text, encoding="utf-8")
+    print(text)
+    print(f"wrote {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
