@@ -158,13 +158,13 @@ class TermModel:
 
     def equations(self, precision: int = 4) -> str:
         """pysindy-style two-line print of the model."""
-        return (
-            format_equation("T", self.torque, precision)
-            + "\n"
-            + format_equation("dz/dt", self.hysteresis, precision)
-            .replace("|z|^n", f"|z|^{self.n:.{precision}g}")
-            .replace("|z|^(n-1)", f"|z|^({self.n:.{precision}g}-1)")
-        )
+        def power(e: float) -> str:  # "*|z|^e", written plainly for e = 0 and 1
+            txt = f"{e:.{precision}g}"
+            return {"0": "", "1": "*|z|"}.get(txt, f"*|z|^{txt}")
+
+        rate = format_equation("dz/dt", self.hysteresis, precision)
+        rate = rate.replace("*|z|^(n-1)", power(self.n - 1.0)).replace("*|z|^n", power(self.n))
+        return format_equation("T", self.torque, precision) + "\n" + rate
 
 
 def format_equation(lhs: str, coefs: Mapping[str, float], precision: int = 4) -> str:

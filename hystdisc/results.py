@@ -343,8 +343,10 @@ def _family_entry(name: str, fit, discovered_terms: dict) -> dict:
     for k, v in fit.params.items():
         lo, hi = fit.ci95.get(k, (float("nan"), float("nan")))
         params[k] = {"value": v, "ci95": [lo, hi], "identifiable": fit.identifiable.get(k, True)}
-    fam_t = set(fam.torque_terms)
-    fam_h = set(fam.hysteresis_terms)
+    # terms the fit really uses (a current term fixed at 0 for one current is not "added")
+    tm = fit.term_model
+    fam_t = {t for t in fam.torque_terms if tm.torque.get(t, 0.0) != 0.0}
+    fam_h = {t for t in fam.hysteresis_terms if tm.hysteresis.get(t, 0.0) != 0.0}
     dt = set(discovered_terms["torque"]) - {"theta", "1"}
     dh = set(discovered_terms["hysteresis"])
     return {
