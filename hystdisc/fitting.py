@@ -30,7 +30,7 @@ from hystdisc.models import (
 from hystdisc.simulation import (
     N_BASE,
     base_coefficients,
-    driven_batch,
+    driven_shared,
     input_slopes,
     mech_batch,
 )
@@ -41,6 +41,26 @@ FIT_RATIO = 0.4
 #: Sub-step cap while fitting: a candidate with a near-discontinuous state (a Dahl rate
 #: fitted to Bingham data) is not worth resolving exactly inside the optimizer.
 FIT_MAX_SUB = 8
+#: Samples per cycle of the motion kept by the bulk of an output-error fit (the fit then
+#: finishes on the full data, so the optimum, intervals and BIC refer to every sample).
+BULK_PER_CYCLE = 100
+#: A run is decimated for the bulk only if it keeps at least this many samples.
+BULK_MIN_SAMPLES = 200
+#: Levenberg-Marquardt iterations on the full data after the bulk fit, at least.
+POLISH_MIN_ITER = 2
+#: Relative cost change at which the bulk fit hands over to the full data.
+BULK_TOL = 1e-5
+#: The predicted-gain stop of the Levenberg-Marquardt applies while the damping is below
+#: this (a heavily damped step predicts little because it is short, not because the
+#: optimum is reached).
+PRED_MAX_LAMBDA = 1e-2
+
+
+def _samples_per_cycle(w: np.ndarray) -> float:
+    """Samples per cycle of a signal oscillating about zero (from its zero crossings)."""
+    sgn = np.signbit(np.asarray(w))
+    crossings = np.count_nonzero(sgn[1:] != sgn[:-1])
+    return 2.0 * sgn.size / max(crossings, 1)
 
 
 # ----------------------------------------------------------------------------- data
@@ -62,6 +82,9 @@ class FitData:
     noise_std: float = 0.0
     hold: str = "cubic"
     du: list[np.ndarray] | None = None  # forced: spline slopes of the input (cached)
+    step: int = 1  # largest decimation factor of the runs (sub-step cap scales with it)
+    _bulk: FitData | None = field(default=None, init=False, repr=False, compare=False)
+    _bulk_done: bool = field(default=False, init=False, repr=False, compare=False)
 
     def input_slopes(self) -> list[np.ndarray]:
         """Per-run slopes of the input's cubic spline (computed once)."""
@@ -75,6 +98,60 @@ class FitData:
     @property
     def n_runs(self) -> int:
         return len(self.t)
+
+    def bulk_factors(self) -> list[int]:
+        """Per-run decimation factor of the bulk of an output-error fit.
+
+        Every run keeps about :data:`BULK_PER_CYCLE` samples per cycle of its motion (and of
+        a forced run's input); the simulator's sub-steps keep the integration as accurate
+        as on the full grid.
+        """
+        out = []
+        for k in range(self.n_runs):
+            per = _samples_per_cycle(self.theta_dot[k])
+            if self.experiment == "forced":
+                per = min(per, _samples_per_cycle(self.u[k] - np.mean(self.u[k])))
+            q = int(per // BULK_PER_CYCLE)
+            # a short run or one whose residual rows would thin out is kept as it is
+            if self.t[k].size // max(q, 1) < BULK_MIN_SAMPLES:
+                q = 1
+            out.append(max(q, 1))
+        return out
+
+    def bulk(self) -> FitData | None:
+        """The data decimated by :meth:`bulk_factors` (computed once), or None when that
+        would not save at least half of the samples."""
+        if not self._bulk_done:
+            self._bulk_done = True
+            qs = self.bulk_factors()
+            n_full = sum(t.size for t in self.t)
+            n_bulk = sum(-(-t.size // q) for t, q in zip(self.t, qs, strict=True))
+            if n_bulk <= n_full / 2:
+                self._bulk = self.decimated(qs)
+        return self._bulk
+
+    def decimated(self, qs: list[int]) -> FitData:
+        """Every ``qs[k]``-th sample of run ``k`` (a forced run keeps its full-rate spline
+        slopes at the samples kept)."""
+        dec = lambda xs: [x[::q] for x, q in zip(xs, qs, strict=True)]  # noqa: E731
+        du = None
+        if self.experiment == "forced" and self.hold == "cubic":
+            du = dec(self.input_slopes())
+        return FitData(
+            self.experiment,
+            list(self.names),
+            dec(self.t),
+            dec(self.y),
+            self.currents,
+            dec(self.theta),
+            dec(self.theta_dot),
+            dec(self.u),
+            dec(self.mask),
+            self.noise_std,
+            self.hold,
+            du,
+            max(qs) * self.step,
+        )
 
     def subset(self, idx: list[int]) -> FitData:
         pick = lambda xs: [xs[k] for k in idx]  # noqa: E731
@@ -91,6 +168,7 @@ class FitData:
             self.noise_std,
             self.hold,
             None if self.du is None else pick(self.du),
+            self.step,
         )
 
     def _per_run(self, state: bool) -> list[str]:
@@ -145,7 +223,7 @@ def simulate_entries(
         if data.experiment == "driven":
             th = np.concatenate([data.theta[r] for r in runs])
             w = np.concatenate([data.theta_dot[r] for r in runs])
-            out, _, status = driven_batch(
+            out, _, status = driven_shared(
                 coef,
                 b,
                 n,
@@ -153,10 +231,10 @@ def simulate_entries(
                 th,
                 w,
                 offsets,
-                np.zeros(ne),
+                np.asarray(runs),
                 ratio=FIT_RATIO,
                 min_sub=1,
-                max_sub=FIT_MAX_SUB,
+                max_sub=FIT_MAX_SUB * data.step,
             )
         else:
             u = np.concatenate([data.u[r] for r in runs])
@@ -181,7 +259,7 @@ def simulate_entries(
                 hold=data.hold,
                 ratio=FIT_RATIO,
                 min_sub=1,
-                max_sub=FIT_MAX_SUB,
+                max_sub=FIT_MAX_SUB * data.step,
                 du=du,
             )
     res = [out[offsets[e] : offsets[e + 1]] for e in range(ne)]
@@ -354,12 +432,17 @@ class TermParametrization(Parametrization):
 # ----------------------------------------------------------------------------- the fit
 
 
-def levenberg_marquardt(fun, jac, x0, lower, upper, max_iter=60, tol=1e-6):
+def levenberg_marquardt(fun, jac, x0, lower, upper, max_iter=60, tol=1e-6, return_jac=False):
     """Bounded Levenberg-Marquardt on the normal equations (N >> p, so the p x p Gram matrix
     is far cheaper than the SVD of the tall Jacobian that scipy's trust-region solvers use).
 
     Steps are clipped to the bounds; Marquardt's diagonal scaling makes it scale-invariant.
-    Returns the solution, the number of Jacobian evaluations and whether it converged.
+    It stops when a step lowers the cost by less than ``tol`` (relative), or before taking
+    a step that the local (damped Gauss-Newton) model predicts to do so, which saves the
+    Jacobian evaluation such a step would be followed by.
+    Returns the solution, the number of Jacobian evaluations and whether it converged (and,
+    with ``return_jac``, the Jacobian at the solution when it was evaluated there, else
+    None).
 
     Examples
     --------
@@ -382,9 +465,11 @@ def levenberg_marquardt(fun, jac, x0, lower, upper, max_iter=60, tol=1e-6):
     lam = 1e-3
     njev = 0
     converged = False
+    J_at_x = None
     for _ in range(max_iter):
         J = jac(x)
         njev += 1
+        J_at_x = J
         A = J.T @ J
         g = J.T @ r
         d = np.diag(A).copy()
@@ -396,6 +481,17 @@ def levenberg_marquardt(fun, jac, x0, lower, upper, max_iter=60, tol=1e-6):
             break
         Af = A[np.ix_(free, free)]
         gf = g[free]
+        if lam <= PRED_MAX_LAMBDA:
+            # the step the model predicts to gain less than tol is not worth a Jacobian
+            try:
+                sf = np.linalg.solve(Af + lam * np.diag(d[free]), gf)
+            except np.linalg.LinAlgError:
+                sf = None
+            if sf is not None and np.all(np.isfinite(sf)):
+                pred = float(2.0 * gf @ sf - sf @ Af @ sf)
+                if pred < tol * cost:
+                    converged = True
+                    break
         improved = False
         while lam < 1e12:
             step = np.zeros_like(x)
@@ -411,6 +507,7 @@ def levenberg_marquardt(fun, jac, x0, lower, upper, max_iter=60, tol=1e-6):
                 rel = (cost - cn) / max(cost, 1e-300)
                 small = np.all(np.abs(xn - x) <= 1e-9 * (np.abs(x) + 1e-9))
                 x, r, cost = xn, rn, cn
+                J_at_x = None
                 lam = max(lam / 5.0, 1e-12)
                 improved = True
                 if rel < tol or small:
@@ -422,6 +519,8 @@ def levenberg_marquardt(fun, jac, x0, lower, upper, max_iter=60, tol=1e-6):
             break
         if converged:
             break
+    if return_jac:
+        return x, njev, converged, J_at_x
     return x, njev, converged
 
 
@@ -536,18 +635,48 @@ class OutputErrorFitter:
         return Jm
 
     def fit(self, heldout: bool = True) -> OEFit:
+        """Levenberg-Marquardt from the parametrization's start; intervals, BIC and (with
+        ``heldout``) leave-one-run-out errors at the optimum.
+
+        Long records are fitted on the decimated data (:meth:`FitData.bulk`) first; the
+        fit then continues on every sample until it converges there too, so the result
+        refers to the full data whichever way it got there.
+        """
         p0 = np.concatenate([self.par.x0, self.data.nuisance_start(self.state)])
         lo = np.concatenate([self.par.lower, np.full(self.nnu * self.data.n_runs, -np.inf)])
         hi = np.concatenate([self.par.upper, np.full(self.nnu * self.data.n_runs, np.inf)])
-        v, nfev, ok = levenberg_marquardt(
-            self.residuals, self.jacobian, p0, lo, hi, max_iter=self.max_nfev
+        used = 0
+        bulk = self.data.bulk()
+        if bulk is not None:
+            coarse = OutputErrorFitter(bulk, self.par, self.max_nfev, self.rel_step)
+            try:
+                p0, used, _ = levenberg_marquardt(
+                    coarse.residuals,
+                    coarse.jacobian,
+                    p0,
+                    lo,
+                    hi,
+                    max_iter=self.max_nfev,
+                    tol=BULK_TOL,
+                )
+            except HystdiscError:
+                used = 0  # the start diverges on the coarse grid: fit the full data directly
+        v, nfev, ok, Jv = levenberg_marquardt(
+            self.residuals,
+            self.jacobian,
+            p0,
+            lo,
+            hi,
+            max_iter=max(self.max_nfev - used, POLISH_MIN_ITER),
+            return_jac=True,
         )
-        return self._finish(v, nfev, ok, heldout)
+        return self._finish(v, nfev + used, ok, heldout, Jv)
 
-    def _finish(self, v, nfev, success, heldout) -> OEFit:
+    def _finish(self, v, nfev, success, heldout, Jm=None) -> OEFit:
         x, nu = self._split(v)
         res = self.residuals(v)
-        Jm = self.jacobian(v)
+        if Jm is None:
+            Jm = self.jacobian(v)
         N = res.size
         k = len(v)
         rss = float(res @ res)

@@ -327,6 +327,17 @@ def _driven_batch(
                 break
 
 
+@numba.njit(cache=True)
+def _torque_series(coef, rows, offsets, th_in, w_in, z, eps, out):
+    """Torque of the entries ``rows`` (samples ``offsets[e]:offsets[e+1]``) for a given ``z``
+    (the same arithmetic as :func:`_driven_batch`)."""
+    for j in range(rows.shape[0]):
+        e = rows[j]
+        c = coef[e]
+        for k in range(offsets[e], offsets[e + 1]):
+            out[k] = _torque(c, th_in[k], w_in[k], z[k], eps)
+
+
 # ----------------------------------------------------------------------------- python API
 
 
@@ -489,20 +500,108 @@ def driven_batch(
     return tq, z, status
 
 
-def integrate_z(
+def driven_shared(
+    coef: np.ndarray,
+    b: np.ndarray,
+    n: np.ndarray,
+    t: np.ndarray,
+    theta: np.ndarray,
+    theta_dot: np.ndarray,
+    offsets: np.ndarray,
+    run: np.ndarray,
+    eps: float = SIGN_EPS,
+    ratio: float = STEP_RATIO,
+    min_sub: int = MIN_SUBSTEPS,
+    max_sub: int = MAX_SUBSTEPS,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`driven_batch` from ``z = 0`` for entries that may share their hysteresis.
+
+    Entries ``e`` on the same run (``run[e]``, the samples ``offsets[e]:offsets[e+1]``) with
+    the same rate coefficients and exponent have the same ``z``: it is integrated once and
+    only the torque is evaluated for the others (in a driven experiment the torque-side
+    parameters do not act on ``z``, so most columns of a finite-difference Jacobian need no
+    integration). Returns exactly what :func:`driven_batch` returns.
+
+    Examples
+    --------
+    >>> t = np.linspace(0.0, 1.0, 50)
+    >>> w = np.cos(6 * t)
+    >>> coef = np.zeros((2, N_BASE)); coef[:, 2] = (1.0, 2.0)
+    >>> b = np.tile([10.0, -10.0, 0, 0, 0], (2, 1))
+    >>> tq, z, st = driven_shared(coef, b, np.ones(2), np.r_[t, t], np.zeros(100), np.r_[w, w],
+    ...                           np.array([0, 50, 100]), np.array([0, 0]))
+    >>> bool(np.array_equal(tq[50:], 2 * tq[:50]))
+    True
+    """
+    ne = len(offsets) - 1
+    first: dict[tuple, int] = {}
+    owner = np.empty(ne, dtype=np.int64)
+    for e in range(ne):
+        key = (int(run[e]), float(n[e]), *map(float, b[e]))
+        owner[e] = first.setdefault(key, e)
+    lead = np.array(sorted(first.values()), dtype=np.int64)
+    if lead.size == ne:
+        return driven_batch(
+            coef, b, n, t, theta, theta_dot, offsets, np.zeros(ne), eps, ratio, min_sub, max_sub
+        )
+    lens = np.diff(offsets)
+    sub_off = np.zeros(lead.size + 1, dtype=np.int64)
+    sub_off[1:] = np.cumsum(lens[lead])
+    idx = np.concatenate([np.arange(offsets[e], offsets[e + 1]) for e in lead])
+    tq_l, z_l, st_l = driven_batch(
+        coef[lead],
+        b[lead],
+        n[lead],
+        t[idx],
+        theta[idx],
+        theta_dot[idx],
+        sub_off,
+        np.zeros(lead.size),
+        eps,
+        ratio,
+        min_sub,
+        max_sub,
+    )
+    pos = {int(e): j for j, e in enumerate(lead)}
+    tq = np.empty_like(t)
+    z = np.empty_like(t)
+    status = np.zeros(ne, dtype=np.int64)
+    for e in range(ne):
+        j = pos[int(owner[e])]
+        z[offsets[e] : offsets[e + 1]] = z_l[sub_off[j] : sub_off[j + 1]]
+        status[e] = st_l[j]
+        if owner[e] == e:
+            tq[offsets[e] : offsets[e + 1]] = tq_l[sub_off[j] : sub_off[j + 1]]
+    rest = np.array([e for e in range(ne) if owner[e] != e], dtype=np.int64)
+    _torque_series(
+        np.ascontiguousarray(coef, dtype=float), rest, offsets, theta, theta_dot, z, eps, tq
+    )
+    return tq, z, status
+
+
+def integrate_z_flat(
     b: np.ndarray,
     n: float,
-    t_list: list[np.ndarray],
-    w_list: list[np.ndarray],
+    t: np.ndarray,
+    w: np.ndarray,
+    offsets: np.ndarray,
     eps: float = SIGN_EPS,
-) -> list[np.ndarray]:
-    """z(t) of each run under its velocity record, from z = 0 (equation-error stage)."""
-    t, offsets = concat_runs(t_list)
-    w, _ = concat_runs(w_list)
-    nr = len(t_list)
+) -> np.ndarray:
+    """z(t) of runs concatenated with ``offsets`` (see :func:`concat_runs`), from z = 0.
+
+    The sub-step rule of the output-error fit (ratio 0.4, at most 8 sub-steps per sample).
+
+    Examples
+    --------
+    >>> t = np.linspace(0.0, 1.0, 101)
+    >>> z = integrate_z_flat(np.array([1.0, 0, 0, 0, 0]), 1.0, t, np.ones(101), np.array([0, 101]))
+    >>> round(float(z[-1]), 6)
+    1.0
+    """
+    nr = len(offsets) - 1
     _, z, _ = driven_batch(
         np.zeros((nr, N_BASE)),
-        np.tile(b, (nr, 1)),
+        np.tile(np.asarray(b, dtype=float), (nr, 1)),
         np.full(nr, n),
         t,
         np.zeros_like(t),
@@ -514,7 +613,21 @@ def integrate_z(
         min_sub=1,
         max_sub=8,
     )
-    return [z[offsets[k] : offsets[k + 1]] for k in range(nr)]
+    return z
+
+
+def integrate_z(
+    b: np.ndarray,
+    n: float,
+    t_list: list[np.ndarray],
+    w_list: list[np.ndarray],
+    eps: float = SIGN_EPS,
+) -> list[np.ndarray]:
+    """z(t) of each run under its velocity record, from z = 0 (equation-error stage)."""
+    t, offsets = concat_runs(t_list)
+    w, _ = concat_runs(w_list)
+    z = integrate_z_flat(b, n, t, w, offsets, eps)
+    return [z[offsets[k] : offsets[k + 1]] for k in range(len(t_list))]
 
 
 def simulate_mech(
