@@ -393,36 +393,24 @@ def stage1_start(
     dict or None
         Parameter values by name; None when stage 1 fails.
     """
-    from hystdisc.discovery import _coef_dict, _varpro
-    from hystdisc.library import FAMILY_SHAPE, SHAPES
-    from hystdisc.models import HYSTERESIS_TERM_NAMES
+    from hystdisc.discovery import family_start
 
     fam = fit.par.family
-    one_level = _n_levels(data.currents) < 2
-    terms = [t for t in fam.torque_terms if not (one_level and t.startswith("i"))]
-    eff_terms = [t for e in effects for t in EFFECTS[e].terms if t not in terms]
-    terms = ["theta", *terms, *eff_terms]
-    shape = FAMILY_SHAPE.get(fam.name, "none")
+    eff_terms = [t for e in effects for t in EFFECTS[e].terms]
     try:
         with np.errstate(all="ignore"):
-            if s0 is not None and shape != "none" and len(s0) == len(SHAPES[shape].shape_names):
-                s, c, _ = _varpro(eq, shape, terms, s0=np.asarray(s0, dtype=float))
-            else:
-                s, c, _ = _varpro(eq, shape, terms)
-            coefs, J = _coef_dict(eq, terms, c)
-            b, n = SHAPES[shape].vector(s)
-            hyst = {k: float(v) for k, v in zip(HYSTERESIS_TERM_NAMES, b, strict=True) if v != 0.0}
-            p = fam.from_terms(TermModel(dict(coefs), hyst, n, J))
+            p, coefs = family_start(
+                eq,
+                fam.name,
+                eff_terms,
+                s0=s0,
+                one_level=_n_levels(data.currents) < 2,
+                constant=False,
+            )
     except Exception:  # noqa: BLE001 - a start is optional
         return None
-    ks = max(coefs.get("theta", 0.0), 0.0)
-    p["k_s"] = ks
-    p["J"] = J if J > 0 else 1.0
-    for spec in fam.params:
-        v = p.get(spec.name, spec.default)
-        p[spec.name] = float(np.clip(v if np.isfinite(v) else spec.default, spec.lower, spec.upper))
     for e in effects:
-        p.update(EFFECTS[e].from_torque(coefs, ks))
+        p.update(EFFECTS[e].from_torque(coefs, p["k_s"]))
     for k, v in fit.par.fixed.items():
         p[k] = v
     if not all(np.isfinite(v) for v in p.values()):

@@ -31,6 +31,7 @@ import sys
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 import pysindy as ps
@@ -47,15 +48,17 @@ from hystdisc.fitting import (
     TermParametrization,
 )
 from hystdisc.io import Dataset, distinct_currents, estimate_noise, trim_release, validate
-from hystdisc.library import DEFAULT_TORQUE_TERMS, FAMILY_SHAPE, SHAPES, TorqueLibrary
+from hystdisc.library import DEFAULT_TORQUE_TERMS, FAMILY_SHAPE, SHAPES
 from hystdisc.models import (
     FAMILIES,
     HYSTERESIS_TERM_NAMES,
+    TORQUE_TERMS,
+    Z_TORQUE_TERMS,
     TermModel,
     format_equation,
     get_family,
 )
-from hystdisc.simulation import SIGN_EPS, integrate_z
+from hystdisc.simulation import SIGN_EPS, concat_runs, integrate_z_flat
 
 ALL_FAMILIES = ("bingham", "dahl", "lugre", "bouc-wen", "bouc-wen-std")
 #: Families whose BIC lies within this of the best "fit equally well".
@@ -85,37 +88,112 @@ class EqData:
         """Sum of squares of the regression target over the rows used."""
         return float(sum(np.sum(y[m] ** 2) for y, m in zip(self.target, self.rows, strict=True)))
 
-    def z_list(self, shape, s) -> list[np.ndarray]:
-        b, n = shape.vector(s)
+    @cached_property
+    def _flat(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        t, offsets = concat_runs(self.t)
+        w, _ = concat_runs(self.theta_dot)
+        return t, w, offsets
+
+    @cached_property
+    def row_index(self) -> np.ndarray:
+        """Indices of the rows used, in the concatenation of all runs' samples."""
+        offsets = self._flat[2]
+        return np.concatenate(
+            [o + np.flatnonzero(m) for o, m in zip(offsets[:-1], self.rows, strict=True)]
+        )
+
+    def z_flat(self, shape, s) -> np.ndarray:
+        """z of every run for the shape constants ``s``, all runs concatenated."""
+        t, w, offsets = self._flat
         if shape.name == "none":
-            return [np.zeros_like(t) for t in self.t]
-        return integrate_z(b, n, self.t, self.theta_dot, SIGN_EPS)
+            return np.zeros_like(t)
+        b, n = shape.vector(s)
+        return integrate_z_flat(b, n, t, w, offsets, SIGN_EPS)
+
+    def z_list(self, shape, s) -> list[np.ndarray]:
+        """z of every run for the shape constants ``s`` (zeros for the shape 'none')."""
+        z = self.z_flat(shape, s)
+        offsets = self._flat[2]
+        return [z[a:b] for a, b in zip(offsets[:-1], offsets[1:], strict=True)]
 
     def design(self, terms: Sequence[str], z_list) -> tuple[np.ndarray, np.ndarray]:
-        lib = TorqueLibrary(list(terms))
-        blocks, ys = [], []
-        for k in range(len(self.t)):
-            X = np.column_stack(
-                [
-                    self.theta[k],
-                    self.theta_dot[k],
-                    z_list[k],
-                    np.full(self.t[k].size, self.currents[k]),
-                ]
-            )
-            m = self.rows[k]
-            F = lib.fit(X).transform(X[m]) if len(terms) else np.zeros((int(m.sum()), 0))
-            if self.experiment == "forced":
-                F = np.column_stack([self.theta_ddot[k][m], F])
-            blocks.append(F)
-            ys.append(self.target[k][m])
-        return np.vstack(blocks), np.concatenate(ys)
+        """Design matrix (``J``'s column first when forced) and target over the rows used."""
+        return Design(self, terms).build(z_list)
 
     def n_eff(self, n: int) -> float:
         """Effective number of independent equation-error samples (smoothing correlates them)."""
         if self.experiment == "driven":
             return float(n)
         return float(n) * 2.0 / max(self.window, 2)
+
+
+class Design:
+    """Design matrix of torque terms on the equation-error rows of all runs.
+
+    The columns that do not depend on ``z`` (and the regression target) are evaluated once;
+    :meth:`build` only writes the ``z`` columns, so the shape search of :func:`_varpro`
+    costs one ``z`` integration and one small least-squares solve per evaluation. The
+    values are exactly those of the terms (:data:`hystdisc.models.TORQUE_TERMS`) evaluated
+    on ``[theta, theta_dot, z, i]``, as pysindy's :class:`~hystdisc.library.TorqueLibrary`
+    computes them.
+
+    Parameters
+    ----------
+    eq : EqData
+        Equation-error data.
+    terms : sequence of str
+        Torque terms, in column order (a forced experiment's ``theta_ddot`` column for the
+        inertia comes first).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = np.linspace(0.0, 1.0, 5)
+    >>> eq = EqData("driven", [t], [t], [np.ones(5)], [np.zeros(5)], [2 * t],
+    ...             np.array([0.5]), [np.ones(5, dtype=bool)])
+    >>> F, y = Design(eq, ["theta", "i*z"]).build([np.full(5, 2.0)])
+    >>> F[0].tolist(), y.tolist()
+    ([0.0, 1.0], [0.0, 0.5, 1.0, 1.5, 2.0])
+    """
+
+    def __init__(self, eq: EqData, terms: Sequence[str]) -> None:
+        unknown = [t for t in terms if t not in TORQUE_TERMS]
+        if unknown:
+            raise ValueError(f"unknown torque terms {unknown}; known: {list(TORQUE_TERMS)}")
+        self.terms = list(terms)
+        self.rows = eq.row_index
+        ms = eq.rows
+        cat = lambda xs: np.concatenate([x[m] for x, m in zip(xs, ms, strict=True)])  # noqa: E731
+        th, w = cat(eq.theta), cat(eq.theta_dot)
+        i = np.concatenate([np.full(int(m.sum()), c) for m, c in zip(ms, eq.currents, strict=True)])
+        self.y = cat(eq.target)
+        off = 1 if eq.experiment == "forced" else 0
+        F = np.empty((self.y.size, off + len(self.terms)))
+        if off:
+            F[:, 0] = cat(eq.theta_ddot)
+        self._z_cols = []
+        for j, t in enumerate(self.terms):
+            if t in Z_TORQUE_TERMS:
+                # the z columns are z times a z-free factor (|theta_dot|, i, i^2)
+                self._z_cols.append((off + j, TORQUE_TERMS[t](th, w, np.ones_like(th), i)))
+            else:
+                F[:, off + j] = TORQUE_TERMS[t](th, w, None, i)
+        self._F = F
+
+    def build_flat(self, z_flat: np.ndarray, copy: bool = True) -> tuple[np.ndarray, np.ndarray]:
+        """Design and target for z given on all samples, concatenated (``EqData.z_flat``).
+
+        With ``copy=False`` the returned matrix is overwritten by the next call.
+        """
+        z = z_flat[self.rows]
+        F = self._F
+        for j, factor in self._z_cols:
+            F[:, j] = factor * z
+        return (F.copy() if copy else F), self.y
+
+    def build(self, z_list: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+        """Design and target for z given per run."""
+        return self.build_flat(np.concatenate([np.asarray(z, dtype=float) for z in z_list]))
 
 
 def _samples_per_cycle(w: np.ndarray) -> float:
@@ -161,24 +239,25 @@ class ShapeFit:
 
 
 def _varpro(eq: EqData, shape_name: str, terms: Sequence[str], s0=None):
-    """Shape constants minimizing the torque-side least-squares residual."""
+    """Shape constants minimizing the torque-side least-squares residual.
+
+    Grid (or ``s0``), then Nelder-Mead on the log residual sum of squares; the torque-side
+    coefficients are projected out by least squares at every evaluation.
+    Returns the shape constants, the coefficients and the RSS.
+    """
     shape = SHAPES[shape_name]
+    design = Design(eq, terms)
     if shape_name == "none":
-        F, y = eq.design(terms, eq.z_list(shape, np.zeros(0)))
-        c, rss = _lstsq(F, y)
+        c, rss = _lstsq(*design.build_flat(eq.z_flat(shape, np.zeros(0)), copy=False))
         return np.zeros(0), c, rss
 
     def obj(s):
         s = shape.clip(s, eq.scale)
         with np.errstate(all="ignore"):
-            zl = eq.z_list(shape, s)
-            if (
-                not all(np.all(np.isfinite(z)) for z in zl)
-                or max(np.abs(z).max() for z in zl) > 1e6
-            ):
+            z = eq.z_flat(shape, s)
+            if not np.all(np.isfinite(z)) or np.abs(z).max() > 1e6:
                 return 1e300
-            F, y = eq.design(terms, zl)
-            return _lstsq(F, y)[1]
+            return _lstsq(*design.build_flat(z, copy=False))[1]
 
     grid = [s0] if s0 is not None else shape.grid(eq.scale)
     vals = [obj(s) for s in grid]
@@ -190,8 +269,7 @@ def _varpro(eq: EqData, shape_name: str, terms: Sequence[str], s0=None):
         options={"xatol": 1e-3, "fatol": 1e-6, "maxiter": 80 * len(best)},
     )
     s = shape.clip(res.x if res.fun <= np.log(min(vals)) else best, eq.scale)
-    F, y = eq.design(terms, eq.z_list(shape, s))
-    c, rss = _lstsq(F, y)
+    c, rss = _lstsq(*design.build_flat(eq.z_flat(shape, s), copy=False))
     return s, c, rss
 
 
@@ -291,6 +369,81 @@ def _inclusion(F, y, names, threshold, seed, n_models=40):
 
 
 # ----------------------------------------------------------------------------- helpers
+
+
+def family_start(
+    eq: EqData,
+    family: str,
+    extra_terms: Sequence[str] = (),
+    s0: np.ndarray | None = None,
+    one_level: bool = False,
+    constant: bool = True,
+) -> tuple[dict[str, float], dict[str, float]]:
+    """Stage-1 (equation-error) start of a family's output-error fit.
+
+    The shape constants of the family's hysteresis shape and the coefficients of its
+    torque terms (with the spring ``theta`` and ``extra_terms``, e.g. an effect's) are
+    found by variable projection and mapped to the family's parameters, clipped inside
+    their bounds. Discovery starts every family's fit from it; the closing loop starts the
+    augmented structures from it.
+
+    Parameters
+    ----------
+    eq : EqData
+        Equation-error data.
+    family : str
+        Family name.
+    extra_terms : sequence of str
+        Torque terms added to the family's (the ones it already has are ignored).
+    s0 : ndarray, optional
+        Shape constants to start the local search from (skips the grid).
+    one_level : bool
+        All runs share one current: the ``i*`` terms are left out.
+    constant : bool
+        Add a constant column for release and forced experiments (keeps an offset in the
+        data from corrupting the start: z, integrated from 0, would imitate it).
+
+    Returns
+    -------
+    params : dict
+        Family parameters, ``k_s`` and ``J``.
+    coefs : dict
+        The fitted torque coefficients by term.
+
+    Examples
+    --------
+    >>> from hystdisc.models import Model
+    >>> from hystdisc.synth import generate
+    >>> data = generate(Model("dahl"), currents=(0, 1), duration=3, noise=1e-4, seed=1)
+    >>> d = Discovery(); d.single_current_ = False
+    >>> eq, _ = d._prepare(data)
+    >>> p, _ = family_start(eq, "bingham")
+    >>> sorted(p)
+    ['J', 'c_a', 'c_b', 'f_a', 'f_b', 'k_s']
+    """
+    fam = get_family(family)
+    ft = [t for t in fam.torque_terms if not (one_level and t.startswith("i"))]
+    lead = ["theta", "1"] if constant and eq.experiment != "driven" else ["theta"]
+    terms = [*lead, *ft]
+    terms += [t for t in dict.fromkeys(extra_terms) if t not in terms]
+    shape = FAMILY_SHAPE[fam.name]
+    if s0 is not None and len(s0) != len(SHAPES[shape].shape_names):
+        s0 = None
+    s, c, _ = _varpro(eq, shape, terms, s0=None if s0 is None else np.asarray(s0, dtype=float))
+    coefs, J = _coef_dict(eq, terms, c)
+    b, n = SHAPES[shape].vector(s)
+    hyst = {k: float(v) for k, v in zip(HYSTERESIS_TERM_NAMES, b, strict=True) if v != 0.0}
+    with np.errstate(all="ignore"):
+        p = fam.from_terms(TermModel(coefs, hyst, n, J))
+    p["k_s"] = max(coefs.get("theta", 0.0), 0.0)
+    p["J"] = J if J > 0 else 1.0
+    # keep the start inside the physical bounds
+    for spec in fam.params:
+        v = p.get(spec.name, spec.default)
+        if not np.isfinite(v):
+            v = spec.default
+        p[spec.name] = float(np.clip(v, spec.lower, spec.upper))
+    return p, coefs
 
 
 def _family_terms(name: str) -> tuple[list[str], list[str]]:
@@ -483,11 +636,12 @@ class Discovery:
         # the smoothed signals are band-limited by the window: decimate the equation-error
         # stage (z is still integrated with sub-steps on the decimated grid)
         q = max(1, int(np.median(windows)) // 16)
+        qs = [q] * len(runs)
         if exp == "driven":
-            # torque is not differentiated; keep ~200 samples per cycle of the motion
-            per_cycle = np.median([_samples_per_cycle(w) for w in eq_w])
-            q = max(1, int(per_cycle // 200))
-        dec = lambda xs: [x[::q] for x in xs]  # noqa: E731
+            # torque is not differentiated; keep ~200 samples per cycle of each run's motion
+            qs = [max(1, int(_samples_per_cycle(w) // 200)) for w in eq_w]
+            q = max(1, int(np.median(qs)))
+        dec = lambda xs: [x[::qk] for x, qk in zip(xs, qs, strict=True)]  # noqa: E731
         eq = EqData(
             exp,
             dec(eq_t),
@@ -503,31 +657,10 @@ class Discovery:
         return eq, fd
 
     def _family_start(self, eq: EqData, name: str) -> dict[str, float]:
-        fam = get_family(name)
-        ft, _ = _family_terms(name)
-        if self.single_current_:
-            ft = [t for t in ft if not t.startswith("i")]
-        shape = FAMILY_SHAPE[name]
-        # the constant column keeps an offset in the data from corrupting the start (z,
-        # integrated from 0, would imitate it); the family itself has no constant
-        terms = ["theta", "1", *ft] if eq.experiment != "driven" else ["theta", *ft]
         # the stage-1 search of this shape is the natural start (no second grid search)
+        shape = FAMILY_SHAPE[name]
         s0 = self.stage1_[shape].s if shape in getattr(self, "stage1_", {}) else None
-        s, c, _ = _varpro(eq, shape, terms, s0=s0)
-        coefs, J = _coef_dict(eq, terms, c)
-        b, n = SHAPES[shape].vector(s)
-        hyst = {k: float(v) for k, v in zip(HYSTERESIS_TERM_NAMES, b, strict=True) if v != 0.0}
-        tm = TermModel(coefs, hyst, n, J)
-        with np.errstate(all="ignore"):
-            p = fam.from_terms(tm)
-        p["k_s"] = max(coefs.get("theta", 0.0), 0.0)
-        p["J"] = J if J > 0 else 1.0
-        # keep the start inside the physical bounds
-        for spec in fam.params:
-            v = p.get(spec.name, spec.default)
-            if not np.isfinite(v):
-                v = spec.default
-            p[spec.name] = float(np.clip(v, spec.lower, spec.upper))
+        p, _ = family_start(eq, name, s0=s0, one_level=self.single_current_)
         return p
 
     # -- public API
