@@ -158,6 +158,7 @@ def run(folder: str | Path, families=None, close_loop: bool = True, say=None) ->
         families=families or ("bingham", "dahl", "lugre", "bouc-wen", "bouc-wen-std"),
         heldout=False,
         close_loop=close_loop,
+        single_current=True,
         progress=say,
     ).fit(train)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0

@@ -521,6 +521,10 @@ class Discovery:
     close_loop : bool
         After the fit, diagnose the residual against the effect catalogue, add effects
         that improve BIC and test the final residual for whiteness (:mod:`hystdisc.closing`).
+    single_current : bool
+        Compare the families on runs at one current (a rig without a coil, such as the
+        hysteretic benchmark); the current-dependent parameters are fixed at 0. Without it,
+        one current is an error unless ``model`` declares the family.
     input_hold : {'cubic', 'linear', 'zoh'}
         Forced experiments: how the input is interpolated between its samples (a cubic
         spline for a sampled smooth force; ``zoh`` for a DAC output held between samples).
@@ -541,6 +545,7 @@ class Discovery:
         max_nfev: int = 40,
         close_loop: bool = True,
         input_hold: str = "cubic",
+        single_current: bool = False,
     ) -> None:
         self.experiment = experiment
         self.families = families
@@ -555,6 +560,7 @@ class Discovery:
         self.max_nfev = max_nfev
         self.close_loop = close_loop
         self.input_hold = input_hold
+        self.single_current = single_current
 
     # -- helpers
     def _say(self, msg: str) -> None:
@@ -680,9 +686,9 @@ class Discovery:
         else:
             fams = [get_family(f).name for f in (self.families or ALL_FAMILIES)]
         # selecting a family needs several currents, unless the user declared the family or
-        # named the families to compare (a rig without a coil, e.g. a hysteretic benchmark)
-        explicit = self.model is not None or self.families is not None
-        validate(dataset, need_currents=1 if explicit else 2)
+        # asked for a comparison at one current (a rig without a coil, e.g. a benchmark)
+        one = self.model is not None or self.single_current
+        validate(dataset, need_currents=1 if one else 2)
         self.single_current_ = len(distinct_currents(dataset.currents)) < 2
         if self.single_current_:
             warnings.warn(

@@ -1560,8 +1560,9 @@ def _validate(dataset: Dataset, need_currents: int) -> Dataset:
         raise input_error(
             source,
             problem,
-            "add runs at other currents, or declare a family with --model so that only its "
-            "current-independent part is fitted",
+            "add runs at other currents, declare a family with --model so that only its "
+            "current-independent part is fitted, or compare the families at this one current "
+            "with --single-current",
         )
     return dataset
 

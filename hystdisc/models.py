@@ -158,6 +158,7 @@ class TermModel:
 
     def equations(self, precision: int = 4) -> str:
         """pysindy-style two-line print of the model."""
+
         def power(e: float) -> str:  # "*|z|^e", written plainly for e = 0 and 1
             txt = f"{e:.{precision}g}"
             return {"0": "", "1": "*|z|"}.get(txt, f"*|z|^{txt}")

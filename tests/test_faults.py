@@ -298,6 +298,11 @@ def test_single_run_needs_a_declared_model(base, tmp_path, capsys):
     assert err is None, err
     assert any("one current" in t for t in texts)
     assert d.family_fits_["dahl"].params["k_wb"] == 0.0  # fixed, said so in the warning
+    # a rig without a coil: the families are compared at its one current when asked
+    d, err, _ = fit(one, single_current=True)
+    assert err is None, err
+    assert set(d.family_fits_) == {"dahl", "bingham"} and d.family_ in d.family_fits_
+    assert d.family_fits_["dahl"].params["k_wb"] == 0.0
     data = write_csv(one, tmp_path / "one.csv")
     cli_error(["discover", data, *CLI_FAST], capsys, "single current", "--model")
     out = tmp_path / "results.json"

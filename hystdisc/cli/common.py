@@ -96,6 +96,12 @@ def add_discovery_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--ensemble", action="store_true", help="inclusion probabilities by bagging")
     p.add_argument("--no-heldout", action="store_true", help="skip leave-one-run-out errors")
     p.add_argument(
+        "--single-current",
+        action="store_true",
+        help="compare the families on runs at one current (a rig without a coil); the "
+        "current terms are fixed at 0",
+    )
+    p.add_argument(
         "--input-hold",
         choices=("cubic", "linear", "zoh"),
         default="cubic",
@@ -124,4 +130,5 @@ def discovery_options(args: argparse.Namespace) -> dict:
         "seed": args.seed,
         "close_loop": not args.no_effects,
         "input_hold": args.input_hold,
+        "single_current": args.single_current,
     }
