@@ -157,6 +157,34 @@ def per_current(groups: dict[str, list[Path]], work: Path, family: str) -> list[
     return rows
 
 
+#: The small check the tests run (and this script reports): train on two tests, predict a
+#: third at another amplitude and frequency.
+CI_TRAIN = ("10mm1Hz", "25mm0x25Hz")
+CI_TEST = "5mm3Hz"
+
+
+def subset_validation(folder: Path, train=CI_TRAIN, test=CI_TEST, close_loop=False) -> dict:
+    """Discover on the tests ``train`` and predict the test ``test`` (final model and the
+    Bingham fit of the same run): the same as ``hystdisc discover`` + ``hystdisc predict``,
+    in process."""
+    from hystdisc.discovery import Discovery
+    from hystdisc.io import load
+
+    groups = tests_of(folder)
+    files = [str(f) for k in train for f in groups[k]]
+    c0 = time.process_time()
+    disc = Discovery(heldout=False, close_loop=close_loop).fit(load(files, rig=str(RIG)))
+    cpu = time.process_time() - c0
+    ds = load([str(f) for f in groups[test]], rig=str(RIG))
+    y = np.concatenate([r.torque for r in ds.runs])
+    out = {"family": disc.family_, "effects": list(getattr(disc, "effects_", [])), "cpu": cpu}
+    out["fit_rms"] = {k: f.rms for k, f in disc.family_fits_.items()}
+    for label, fam in (("model", None), ("bingham", "bingham")):
+        e = np.concatenate(disc.predict(ds, family=fam)) - y
+        out[label] = (float(np.sqrt(np.mean(e**2))), float(np.sqrt(np.mean(e**2) / np.mean(y**2))))
+    return out
+
+
 def report(full: dict, rows: list[dict], effects: bool, currents: list[dict] | None = None) -> str:
     res = full["results"]
     fams = res["families"]
