@@ -17,6 +17,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.interpolate import CubicSpline
 
 from hystdisc.errors import HystdiscError
 from hystdisc.models import (
@@ -432,7 +433,9 @@ class TermParametrization(Parametrization):
 # ----------------------------------------------------------------------------- the fit
 
 
-def levenberg_marquardt(fun, jac, x0, lower, upper, max_iter=60, tol=1e-6, return_jac=False):
+def levenberg_marquardt(
+    fun, jac, x0, lower, upper, max_iter=60, tol=1e-6, return_jac=False, jac0=None
+):
     """Bounded Levenberg-Marquardt on the normal equations (N >> p, so the p x p Gram matrix
     is far cheaper than the SVD of the tall Jacobian that scipy's trust-region solvers use).
 
@@ -442,7 +445,9 @@ def levenberg_marquardt(fun, jac, x0, lower, upper, max_iter=60, tol=1e-6, retur
     Jacobian evaluation such a step would be followed by.
     Returns the solution, the number of Jacobian evaluations and whether it converged (and,
     with ``return_jac``, the Jacobian at the solution when it was evaluated there, else
-    None).
+    None). ``jac0``, an approximation of the Jacobian at ``x0`` (e.g. interpolated from a
+    coarser grid), is used for the first step instead of evaluating ``jac``; every later
+    step and the convergence test after it use ``jac``.
 
     Examples
     --------
@@ -466,10 +471,14 @@ def levenberg_marquardt(fun, jac, x0, lower, upper, max_iter=60, tol=1e-6, retur
     njev = 0
     converged = False
     J_at_x = None
-    for _ in range(max_iter):
-        J = jac(x)
-        njev += 1
-        J_at_x = J
+    for it in range(max_iter):
+        if it == 0 and jac0 is not None:
+            J = jac0
+            J_at_x = None  # an approximation: never handed out as the Jacobian at x
+        else:
+            J = jac(x)
+            njev += 1
+            J_at_x = J
         A = J.T @ J
         g = J.T @ r
         d = np.diag(A).copy()
@@ -646,11 +655,12 @@ class OutputErrorFitter:
         lo = np.concatenate([self.par.lower, np.full(self.nnu * self.data.n_runs, -np.inf)])
         hi = np.concatenate([self.par.upper, np.full(self.nnu * self.data.n_runs, np.inf)])
         used = 0
+        jac0 = None
         bulk = self.data.bulk()
         if bulk is not None:
             coarse = OutputErrorFitter(bulk, self.par, self.max_nfev, self.rel_step)
             try:
-                p0, used, _ = levenberg_marquardt(
+                p0, used, _, Jb = levenberg_marquardt(
                     coarse.residuals,
                     coarse.jacobian,
                     p0,
@@ -658,7 +668,11 @@ class OutputErrorFitter:
                     hi,
                     max_iter=self.max_nfev,
                     tol=BULK_TOL,
+                    return_jac=True,
                 )
+                # the sensitivities are smooth in time: the coarse Jacobian, splined to every
+                # sample, makes the first full-data step (the final Jacobian checks it)
+                jac0 = self._interpolated(coarse, coarse.jacobian(p0) if Jb is None else Jb)
             except HystdiscError:
                 used = 0  # the start diverges on the coarse grid: fit the full data directly
         v, nfev, ok, Jv = levenberg_marquardt(
@@ -669,8 +683,27 @@ class OutputErrorFitter:
             hi,
             max_iter=max(self.max_nfev - used, POLISH_MIN_ITER),
             return_jac=True,
+            jac0=jac0,
         )
         return self._finish(v, nfev + used, ok, heldout, Jv)
+
+    def _interpolated(self, coarse: OutputErrorFitter, Jc: np.ndarray) -> np.ndarray | None:
+        """The Jacobian of ``coarse`` (a decimation of this fit's data) at every sample."""
+        if not np.all(np.isfinite(Jc)):
+            return None
+        out = np.empty((self._rows[-1], Jc.shape[1]))
+        for r in range(self.data.n_runs):
+            tf = self.data.t[r][self.masks[r]]
+            tc = coarse.data.t[r][coarse.masks[r]]
+            Jr = Jc[coarse._rows[r] : coarse._rows[r + 1]]
+            rows = slice(self._rows[r], self._rows[r + 1])
+            if tc.size == tf.size:
+                out[rows] = Jr
+            elif tc.size >= 4:
+                out[rows] = CubicSpline(tc, Jr, axis=0)(tf)
+            else:
+                return None
+        return out
 
     def _finish(self, v, nfev, success, heldout, Jm=None) -> OEFit:
         x, nu = self._split(v)
