@@ -1162,6 +1162,15 @@ def _final_entry(fit: OEFit, family: str, effects: list[str]) -> dict:
     }
 
 
+def _stage1_shape(disc, fit: OEFit) -> np.ndarray | None:
+    """The discovery's stage-1 shape constants of the fitted family's hysteresis shape."""
+    from hystdisc.library import FAMILY_SHAPE
+
+    shape = FAMILY_SHAPE.get(fit.par.family.name)
+    found = getattr(disc, "stage1_", {}).get(shape)
+    return None if found is None else np.asarray(found.s, dtype=float)
+
+
 def close_loop(disc, dataset) -> None:
     """Close the loop on a fitted :class:`~hystdisc.discovery.Discovery`, in place.
 
@@ -1199,6 +1208,7 @@ def close_loop(disc, dataset) -> None:
             heldout=bool(getattr(disc, "heldout", False)) and fit.heldout_rms is not None,
             eq=getattr(disc, "_eq", None),
             progress=progress,
+            s0=_stage1_shape(disc, fit),
         )
     except (HystdiscError, np.linalg.LinAlgError, ValueError, FloatingPointError) as exc:
         warnings.warn(
