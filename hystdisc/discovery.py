@@ -27,9 +27,12 @@ True
 
 from __future__ import annotations
 
+import os
 import sys
+import threading
 import warnings
 from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from functools import cached_property
 
@@ -61,6 +64,23 @@ from hystdisc.models import (
 from hystdisc.simulation import SIGN_EPS, concat_runs, integrate_z_flat
 
 ALL_FAMILIES = ("bingham", "dahl", "lugre", "bouc-wen", "bouc-wen-std")
+#: Default upper limit of the threads of one discovery.
+MAX_THREADS = 4
+_SAY_LOCK = threading.Lock()
+#: warnings.catch_warnings changes process-wide state: one thread at a time.
+_WARN_LOCK = threading.Lock()
+
+
+def _n_threads(n_jobs: int | None) -> int:
+    if n_jobs is not None:
+        return max(1, int(n_jobs))
+    try:
+        cpus = len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not on Linux
+        cpus = os.cpu_count() or 1
+    return max(1, min(cpus, MAX_THREADS))
+
+
 #: Families whose BIC lies within this of the best "fit equally well".
 EQUAL_FIT_BIC = 6.0
 
@@ -318,7 +338,7 @@ def fit_shape(
     # a fixed threshold is used as given; otherwise the whole path (from plain least squares)
     for th in thresholds if threshold is not None else [0.0, *thresholds]:
         opt = ps.STLSQ(threshold=th, alpha=1e-10, max_iter=50, unbias=True)
-        with warnings.catch_warnings():
+        with _WARN_LOCK, warnings.catch_warnings():
             warnings.simplefilter("ignore")
             opt.fit(Fn, y / ys)
         coef = np.asarray(opt.coef_).ravel()
@@ -360,7 +380,7 @@ def _inclusion(F, y, names, threshold, seed, n_models=40):
     opt = ps.EnsembleOptimizer(
         opt=ps.STLSQ(threshold=threshold, alpha=1e-10, unbias=True), bagging=True, n_models=n_models
     )
-    with warnings.catch_warnings():
+    with _WARN_LOCK, warnings.catch_warnings():
         warnings.simplefilter("ignore")
         opt.fit(F / sc, y / ys)
     coefs = np.array([np.asarray(c).ravel() for c in opt.coef_list])
@@ -528,6 +548,9 @@ class Discovery:
     input_hold : {'cubic', 'linear', 'zoh'}
         Forced experiments: how the input is interpolated between its samples (a cubic
         spline for a sampled smooth force; ``zoh`` for a DAC output held between samples).
+    n_jobs : int, optional
+        Threads for the independent fits (stage-1 shapes, stage-2 families); default: the
+        usable CPUs, at most :data:`MAX_THREADS`. The results do not depend on it.
     """
 
     def __init__(
@@ -546,6 +569,7 @@ class Discovery:
         close_loop: bool = True,
         input_hold: str = "cubic",
         single_current: bool = False,
+        n_jobs: int | None = None,
     ) -> None:
         self.experiment = experiment
         self.families = families
@@ -560,12 +584,31 @@ class Discovery:
         self.max_nfev = max_nfev
         self.close_loop = close_loop
         self.input_hold = input_hold
+        self.n_jobs = n_jobs
         self.single_current = single_current
 
     # -- helpers
     def _say(self, msg: str) -> None:
         if self.progress is not None:
-            self.progress(msg)
+            with _SAY_LOCK:
+                self.progress(msg)
+
+    def _map(self, fn, items: list, serial: bool = False) -> list:
+        """``fn`` over ``items`` (independent fits) on up to ``n_jobs`` threads, in order.
+
+        The compiled kernels release the GIL; numpy's error state is per thread, so each
+        worker ignores floating-point warnings as the caller does.
+        """
+
+        def work(item):
+            with np.errstate(all="ignore"):
+                return fn(item)
+
+        n = _n_threads(self.n_jobs)
+        if serial or n <= 1 or len(items) <= 1:
+            return [work(x) for x in items]
+        with ThreadPoolExecutor(max_workers=min(n, len(items))) as pool:
+            return list(pool.map(work, items))
 
     def _prepare(self, dataset: Dataset) -> tuple[EqData, FitData]:
         exp = self.experiment or dataset.experiment
@@ -707,17 +750,24 @@ class Discovery:
         self._eq, self._fd = eq, fd
 
         # stage 1
-        self.stage1_: dict[str, ShapeFit] = {}
         terms = list(self.torque_terms)
         if eq.experiment == "driven" and "theta" not in terms:
             terms = ["theta", *terms]
         if self.single_current_:
             terms = [t for t in terms if not t.startswith("i")]
-        for shape in self.shapes:
+        # the lazily built arrays the workers share are built before they start
+        eq.row_index  # noqa: B018
+        fd.bulk()
+        if eq.experiment == "forced" and fd.hold == "cubic":
+            fd.input_slopes()
+
+        def shape_fit(shape):
             self._say(f"stage 1: sparse regression with hysteresis shape '{shape}'")
-            self.stage1_[shape] = fit_shape(
-                eq, shape, terms, self.threshold, self.ensemble, self.seed
-            )
+            return fit_shape(eq, shape, terms, self.threshold, self.ensemble, self.seed)
+
+        # the ensemble draws from numpy's global generator: one shape after the other
+        fits = self._map(shape_fit, list(self.shapes), serial=self.ensemble)
+        self.stage1_ = dict(zip(self.shapes, fits, strict=True))
         best = min(self.stage1_.values(), key=lambda f: f.bic)
         self.discovered_shape_ = best.shape
         self.discovered_ = best.term_model()
@@ -727,32 +777,34 @@ class Discovery:
         }
         self.discovered_name_ = describe_structure(best.terms, best.shape)
 
-        # stage 2: each family by output error
-        self.family_fits_: dict[str, OEFit] = {}
-        for k, name in enumerate(fams):
+        # stage 2: each family by output error (and the discovered structure when it is not
+        # one of them), each fit on its own
+        same = [
+            n
+            for n in fams
+            if FAMILY_SHAPE[n] == best.shape
+            and set(FAMILIES[n].torque_terms) == set(best.terms) - {"theta"}
+        ]
+
+        def family_fit(k):
+            if k == len(fams):
+                self._say("stage 2: output-error fit of the discovered structure")
+                tpar = TermParametrization(
+                    best.terms, best.shape, best.coefs, best.s, best.J, eq.experiment
+                )
+                return OutputErrorFitter(fd, tpar, max_nfev=self.max_nfev).fit(heldout=False)
+            name = fams[k]
             self._say(f"stage 2: output-error fit of {name} ({k + 1}/{len(fams)})")
             start = self._family_start(eq, name)
             fixed = {p: 0.0 for p in FAMILIES[name].current_params} if self.single_current_ else {}
             start, norm = _normalization(name, start)
             par = FamilyParametrization(name, eq.experiment, start, fixed=fixed, normalization=norm)
             fitter = OutputErrorFitter(fd, par, max_nfev=self.max_nfev)
-            self.family_fits_[name] = fitter.fit(heldout=self.heldout)
-        # stage 2 of the discovered structure itself (a family's fit when it is one)
-        same = [
-            n
-            for n in self.family_fits_
-            if FAMILY_SHAPE[n] == best.shape
-            and set(FAMILIES[n].torque_terms) == set(best.terms) - {"theta"}
-        ]
-        if same:
-            self.discovered_fit_ = self.family_fits_[same[0]]
-        else:
-            self._say("stage 2: output-error fit of the discovered structure")
-            tpar = TermParametrization(
-                best.terms, best.shape, best.coefs, best.s, best.J, eq.experiment
-            )
-            fitter = OutputErrorFitter(fd, tpar, max_nfev=self.max_nfev)
-            self.discovered_fit_ = fitter.fit(heldout=False)
+            return fitter.fit(heldout=self.heldout)
+
+        fits = self._map(family_fit, list(range(len(fams) + (0 if same else 1))))
+        self.family_fits_: dict[str, OEFit] = dict(zip(fams, fits, strict=False))
+        self.discovered_fit_ = self.family_fits_[same[0]] if same else fits[-1]
 
         # selection: lowest BIC; within EQUAL_FIT_BIC, fewest parameters wins
         bics = {n: f.bic for n, f in self.family_fits_.items()}

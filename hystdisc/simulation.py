@@ -15,7 +15,8 @@ Three experiment types (DESIGN.md section 1):
 The integrator is classical RK4 on the sample grid with a number of sub-steps chosen per
 sample interval from the local stiffness of the state (``|theta'| dg/dz`` for the
 hysteretic state, damping and spring rates for the mechanics), compiled with numba and
-batched over runs. Divergence (NaN, overflow) is detected and reported as a
+batched over runs; the kernels release the GIL, so independent fits can run on threads.
+Divergence (NaN, overflow) is detected and reported as a
 :class:`~hystdisc.errors.HystdiscError` naming the parameters.
 
 Examples
@@ -167,7 +168,7 @@ def _input(ua, ub, ma, mb, f, hold):
     return ua + (ub - ua) * f
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _mech_batch(
     coef,
     bb,
@@ -288,7 +289,7 @@ def _z_segment(b, n, z, wa, wb, f0, f1, h, m):
     return z
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _driven_batch(
     coef, bb, nn, t, th_in, w_in, offsets, z0, eps, ratio, min_sub, max_sub, tq_out, z_out, status
 ):
@@ -327,7 +328,7 @@ def _driven_batch(
                 break
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _torque_series(coef, rows, offsets, th_in, w_in, z, eps, out):
     """Torque of the entries ``rows`` (samples ``offsets[e]:offsets[e+1]``) for a given ``z``
     (the same arithmetic as :func:`_driven_batch`)."""
