@@ -49,6 +49,8 @@ BULK_PER_CYCLE = 100
 BULK_MIN_SAMPLES = 200
 #: Levenberg-Marquardt iterations on the full data after the bulk fit, at least.
 POLISH_MIN_ITER = 2
+#: The bulk fit is used when the full data take this many times its integration work.
+BULK_MIN_GAIN = 2.0
 #: Relative cost change at which the bulk fit hands over to the full data.
 BULK_TOL = 1e-5
 #: The predicted-gain stop of the Levenberg-Marquardt applies while the damping is below
@@ -83,7 +85,7 @@ class FitData:
     noise_std: float = 0.0
     hold: str = "cubic"
     du: list[np.ndarray] | None = None  # forced: spline slopes of the input (cached)
-    step: int = 1  # largest decimation factor of the runs (sub-step cap scales with it)
+    steps: list[int] | None = None  # decimation factor of each run (sub-step caps scale)
     _bulk: FitData | None = field(default=None, init=False, repr=False, compare=False)
     _bulk_done: bool = field(default=False, init=False, repr=False, compare=False)
 
@@ -99,6 +101,10 @@ class FitData:
     @property
     def n_runs(self) -> int:
         return len(self.t)
+
+    def run_steps(self) -> list[int]:
+        """Each run's decimation factor against the data it was measured as (1: all)."""
+        return list(self.steps) if self.steps is not None else [1] * self.n_runs
 
     def bulk_factors(self) -> list[int]:
         """Per-run decimation factor of the bulk of an output-error fit.
@@ -151,7 +157,7 @@ class FitData:
             self.noise_std,
             self.hold,
             du,
-            max(qs) * self.step,
+            [q * s for q, s in zip(qs, self.run_steps(), strict=True)],
         )
 
     def subset(self, idx: list[int]) -> FitData:
@@ -169,7 +175,7 @@ class FitData:
             self.noise_std,
             self.hold,
             None if self.du is None else pick(self.du),
-            self.step,
+            None if self.steps is None else pick(self.steps),
         )
 
     def _per_run(self, state: bool) -> list[str]:
@@ -201,13 +207,18 @@ def simulate_entries(
     runs: list[int],
     nuis: list[np.ndarray],
     status_out: list | None = None,
+    work_out: list | None = None,
 ) -> list[np.ndarray]:
     """Simulate (model, run) pairs in one compiled call; return the predicted outputs.
 
     A diverged entry is returned with its non-finite samples replaced by 1e6 (a large,
-    finite residual the optimizer backs away from); ``status_out`` receives the flags.
+    finite residual the optimizer backs away from); ``status_out`` receives the flags and
+    ``work_out`` the integration work of each entry (see :func:`~hystdisc.simulation.mech_batch`).
     """
     ne = len(runs)
+    steps = data.run_steps()
+    # the sub-step cap is per measured sample interval: a decimated run gets q times more
+    max_sub = np.array([FIT_MAX_SUB * steps[r] for r in runs], dtype=np.int64)
     coef = np.empty((ne, N_BASE))
     b = np.empty((ne, 5))
     n = np.empty(ne)
@@ -219,6 +230,7 @@ def simulate_entries(
         J[e] = tm.J if data.experiment == "forced" else 1.0
     offsets = np.zeros(ne + 1, dtype=np.int64)
     offsets[1:] = np.cumsum([len(data.t[r]) for r in runs])
+    work = np.zeros(ne, dtype=np.int64)
     t = np.concatenate([data.t[r] for r in runs])
     with np.errstate(all="ignore"):
         if data.experiment == "driven":
@@ -235,7 +247,8 @@ def simulate_entries(
                 np.asarray(runs),
                 ratio=FIT_RATIO,
                 min_sub=1,
-                max_sub=FIT_MAX_SUB * data.step,
+                max_sub=max_sub,
+                work=work,
             )
         else:
             u = np.concatenate([data.u[r] for r in runs])
@@ -260,8 +273,9 @@ def simulate_entries(
                 hold=data.hold,
                 ratio=FIT_RATIO,
                 min_sub=1,
-                max_sub=FIT_MAX_SUB * data.step,
+                max_sub=max_sub,
                 du=du,
+                work=work,
             )
     res = [out[offsets[e] : offsets[e + 1]] for e in range(ne)]
     bad = []
@@ -272,6 +286,8 @@ def simulate_entries(
         bad.append(diverged)
     if status_out is not None:
         status_out.extend(bad)
+    if work_out is not None:
+        work_out.extend(int(w) for w in work)
     return res
 
 
@@ -434,7 +450,7 @@ class TermParametrization(Parametrization):
 
 
 def levenberg_marquardt(
-    fun, jac, x0, lower, upper, max_iter=60, tol=1e-6, return_jac=False, jac0=None
+    fun, jac, x0, lower, upper, max_iter=60, tol=1e-6, return_jac=False, jac0=None, r0=None
 ):
     """Bounded Levenberg-Marquardt on the normal equations (N >> p, so the p x p Gram matrix
     is far cheaper than the SVD of the tall Jacobian that scipy's trust-region solvers use).
@@ -447,7 +463,8 @@ def levenberg_marquardt(
     with ``return_jac``, the Jacobian at the solution when it was evaluated there, else
     None). ``jac0``, an approximation of the Jacobian at ``x0`` (e.g. interpolated from a
     coarser grid), is used for the first step instead of evaluating ``jac``; every later
-    step and the convergence test after it use ``jac``.
+    step and the convergence test after it use ``jac``. ``r0`` is ``fun(x0)`` when already
+    known.
 
     Examples
     --------
@@ -460,7 +477,7 @@ def levenberg_marquardt(
     ([2.0, 3.0], True)
     """
     x = np.clip(np.asarray(x0, dtype=float), lower, upper)
-    r = fun(x)
+    r = r0 if r0 is not None and np.array_equal(x, x0) else fun(x)
     if not np.all(np.isfinite(r)):
         raise HystdiscError(
             "the output-error fit cannot start: the model diverges at its starting parameters; "
@@ -594,11 +611,13 @@ class OutputErrorFitter:
             [(p - self.data.y[r])[self.masks[r]] for p, r in zip(preds, runs, strict=True)]
         )
 
-    def residuals(self, v):
+    def residuals(self, v, work_out: list | None = None):
         x, nu = self._split(v)
         tm = self.par.terms(x)
         runs = list(range(self.data.n_runs))
-        preds = simulate_entries(self.data, [tm] * len(runs), runs, [nu[r] for r in runs])
+        preds = simulate_entries(
+            self.data, [tm] * len(runs), runs, [nu[r] for r in runs], work_out=work_out
+        )
         return self._resid_from(preds, runs)
 
     def jacobian(self, v):
@@ -655,10 +674,21 @@ class OutputErrorFitter:
         lo = np.concatenate([self.par.lower, np.full(self.nnu * self.data.n_runs, -np.inf)])
         hi = np.concatenate([self.par.upper, np.full(self.nnu * self.data.n_runs, np.inf)])
         used = 0
-        jac0 = None
+        jac0 = r0 = None
         bulk = self.data.bulk()
+        coarse = None
         if bulk is not None:
             coarse = OutputErrorFitter(bulk, self.par, self.max_nfev, self.rel_step)
+            # a stiff model needs as many sub-steps per second on either grid: the bulk
+            # only pays when it integrates with clearly less work (deterministic count)
+            w_full: list = []
+            w_bulk: list = []
+            with np.errstate(all="ignore"):
+                r0 = self.residuals(p0, w_full)
+                coarse.residuals(p0, w_bulk)
+            if sum(w_full) < BULK_MIN_GAIN * sum(w_bulk):
+                coarse = None
+        if coarse is not None:
             try:
                 p0, used, _, Jb = levenberg_marquardt(
                     coarse.residuals,
@@ -675,6 +705,7 @@ class OutputErrorFitter:
                 jac0 = self._interpolated(coarse, coarse.jacobian(p0) if Jb is None else Jb)
             except HystdiscError:
                 used = 0  # the start diverges on the coarse grid: fit the full data directly
+            r0 = None  # the full fit starts elsewhere
         v, nfev, ok, Jv = levenberg_marquardt(
             self.residuals,
             self.jacobian,
@@ -684,6 +715,7 @@ class OutputErrorFitter:
             max_iter=max(self.max_nfev - used, POLISH_MIN_ITER),
             return_jac=True,
             jac0=jac0,
+            r0=r0,
         )
         return self._finish(v, nfev + used, ok, heldout, Jv)
 
@@ -717,11 +749,12 @@ class OutputErrorFitter:
         bic = float(N * np.log(max(rss, 1e-300) / N) + k * np.log(N))
         s2 = rss / max(N - k, 1)
         # covariance with column scaling for conditioning
-        scale = np.sqrt((Jm**2).sum(axis=0))
+        # the small Gram matrix, column-scaled (no scaled copy of the tall Jacobian)
+        gram = Jm.T @ Jm
+        scale = np.sqrt(np.clip(np.diag(gram), 0.0, None))
         scale[scale == 0] = 1.0
-        Js = Jm / scale
         # eigen-decomposition of the small Gram matrix (much cheaper than an SVD of J)
-        ev, V = np.linalg.eigh(Js.T @ Js)
+        ev, V = np.linalg.eigh(gram / np.outer(scale, scale))
         order = np.argsort(-ev)
         S = np.sqrt(np.clip(ev[order], 0.0, None))
         Vt = V[:, order].T
@@ -793,19 +826,19 @@ class OutputErrorFitter:
             success=success,
         )
         if heldout and self.data.n_runs >= 2:
-            fit.heldout_rms, fit.heldout_predictions = self._heldout(v, res, Jm)
+            fit.heldout_rms, fit.heldout_predictions = self._heldout(v, res, Jm, gram)
             if fit.heldout_rms is None:
                 fit.notes.append(self.heldout_note)
         return fit
 
-    def _heldout(self, v, res, Jm):
+    def _heldout(self, v, res, Jm, gram=None):
         """Leave-one-run-out: one Gauss-Newton step without the run's rows, then simulate it."""
         x, nu = self._split(v)
         R = self.data.n_runs
         sq = 0.0
         cnt = 0
         preds = []
-        G = Jm.T @ Jm
+        G = Jm.T @ Jm if gram is None else gram
         g = Jm.T @ res
         for r in range(R):
             sl = slice(self._rows[r], self._rows[r + 1])

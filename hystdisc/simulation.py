@@ -190,8 +190,10 @@ def _mech_batch(
     w_out,
     z_out,
     status,
+    work,
 ):
-    """RK4 for release/forced runs, concatenated with ``offsets``; one model per run."""
+    """RK4 for release/forced runs, concatenated with ``offsets``; one model per run
+    (``max_sub``: each run's sub-step cap)."""
     nruns = offsets.shape[0] - 1
     for r in range(nruns):
         c = coef[r]
@@ -207,13 +209,15 @@ def _mech_batch(
         w_out[k0] = w
         z_out[k0] = z
         status[r] = 0
+        work[r] = 0
         for k in range(k0, k1 - 1):
             h = t[k + 1] - t[k]
             ua = u[k]
             ub = u[k + 1] if hold != 1 else u[k]
             ma = h * du[k] if hold == 2 else 0.0
             mb = h * du[k + 1] if hold == 2 else 0.0
-            m = _n_sub(c, b, n, J, th, w, z, h, eps, True, ua, ratio, min_sub, max_sub)
+            m = _n_sub(c, b, n, J, th, w, z, h, eps, True, ua, ratio, min_sub, max_sub[r])
+            work[r] += 2 * m + 1
             hs = h / m
             for s in range(m):
                 u1 = _input(ua, ub, ma, mb, s / m, hold)
@@ -291,9 +295,25 @@ def _z_segment(b, n, z, wa, wb, f0, f1, h, m):
 
 @numba.njit(cache=True, nogil=True)
 def _driven_batch(
-    coef, bb, nn, t, th_in, w_in, offsets, z0, eps, ratio, min_sub, max_sub, tq_out, z_out, status
+    coef,
+    bb,
+    nn,
+    t,
+    th_in,
+    w_in,
+    offsets,
+    z0,
+    eps,
+    ratio,
+    min_sub,
+    max_sub,
+    tq_out,
+    z_out,
+    status,
+    work,
 ):
-    """Integrate z under an imposed velocity (linear between samples) and return torque."""
+    """Integrate z under an imposed velocity (linear between samples) and return torque
+    (``max_sub``: each run's sub-step cap)."""
     nruns = offsets.shape[0] - 1
     for r in range(nruns):
         c = coef[r]
@@ -305,12 +325,14 @@ def _driven_batch(
         z_out[k0] = z
         tq_out[k0] = _torque(c, th_in[k0], w_in[k0], z, eps)
         status[r] = 0
+        work[r] = 0
         for k in range(k0, k1 - 1):
             h = t[k + 1] - t[k]
             wa = w_in[k]
             wb = w_in[k + 1]
             wmax = max(abs(wa), abs(wb))
-            m = _n_sub(c, b, n, 1.0, 0.0, wmax, z, h, eps, False, 0.0, ratio, min_sub, max_sub)
+            m = _n_sub(c, b, n, 1.0, 0.0, wmax, z, h, eps, False, 0.0, ratio, min_sub, max_sub[r])
+            work[r] += 2 * m + 1
             if wa * wb < 0.0:
                 # |theta_dot| has a kink where the velocity reverses: split the interval there
                 f = wa / (wa - wb)
@@ -376,6 +398,13 @@ def _diverged(model, runs: list[str]) -> HystdiscError:
     )
 
 
+def _per_run(max_sub, nruns: int) -> np.ndarray:
+    """A sub-step cap per run from one value or one per run."""
+    out = np.empty(nruns, dtype=np.int64)
+    out[:] = np.asarray(max_sub, dtype=np.int64)
+    return out
+
+
 def concat_runs(arrays: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     """Concatenate per-run arrays; return the flat array and the run offsets."""
     offsets = np.zeros(len(arrays) + 1, dtype=np.int64)
@@ -420,13 +449,17 @@ def mech_batch(
     eps: float = SIGN_EPS,
     ratio: float = STEP_RATIO,
     min_sub: int = MIN_SUBSTEPS,
-    max_sub: int = MAX_SUBSTEPS,
+    max_sub: int | np.ndarray = MAX_SUBSTEPS,
     du: np.ndarray | None = None,
+    work: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Low-level batched release/forced simulation, one model per run (rows of ``coef``, ``b``).
 
     Returns flat ``theta, theta_dot, z`` and the per-run status (0 ok, 1 diverged).
-    ``du`` are the input's spline slopes (:func:`input_slopes`) when already known.
+    ``du`` are the input's spline slopes (:func:`input_slopes`) when already known;
+    ``max_sub`` caps the sub-steps per sample interval (one value, or one per run).
+    ``work`` (int64, one per run), when given, receives the integration work of each run:
+    ``2 m + 1`` per sample interval integrated in ``m`` sub-steps.
     """
     if hold not in HOLDS:
         raise HystdiscError(f"unknown input hold '{hold}'; fix: use one of {', '.join(HOLDS)}")
@@ -454,11 +487,12 @@ def mech_batch(
         eps,
         ratio,
         min_sub,
-        max_sub,
+        _per_run(max_sub, len(offsets) - 1),
         th,
         w,
         z,
         status,
+        np.zeros(len(offsets) - 1, dtype=np.int64) if work is None else work,
     )
     return th, w, z, status
 
@@ -475,9 +509,11 @@ def driven_batch(
     eps: float = SIGN_EPS,
     ratio: float = STEP_RATIO,
     min_sub: int = MIN_SUBSTEPS,
-    max_sub: int = MAX_SUBSTEPS,
+    max_sub: int | np.ndarray = MAX_SUBSTEPS,
+    work: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Low-level batched driven simulation; returns flat ``torque, z`` and the status."""
+    """Low-level batched driven simulation; returns flat ``torque, z`` and the status
+    (``max_sub``: one sub-step cap, or one per run; ``work`` as in :func:`mech_batch`)."""
     tq = np.empty_like(t)
     z = np.empty_like(t)
     status = np.zeros(len(offsets) - 1, dtype=np.int64)
@@ -493,10 +529,11 @@ def driven_batch(
         eps,
         ratio,
         min_sub,
-        max_sub,
+        _per_run(max_sub, len(offsets) - 1),
         tq,
         z,
         status,
+        np.zeros(len(offsets) - 1, dtype=np.int64) if work is None else work,
     )
     return tq, z, status
 
@@ -513,7 +550,8 @@ def driven_shared(
     eps: float = SIGN_EPS,
     ratio: float = STEP_RATIO,
     min_sub: int = MIN_SUBSTEPS,
-    max_sub: int = MAX_SUBSTEPS,
+    max_sub: int | np.ndarray = MAX_SUBSTEPS,
+    work: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`driven_batch` from ``z = 0`` for entries that may share their hysteresis.
 
@@ -521,7 +559,8 @@ def driven_shared(
     the same rate coefficients and exponent have the same ``z``: it is integrated once and
     only the torque is evaluated for the others (in a driven experiment the torque-side
     parameters do not act on ``z``, so most columns of a finite-difference Jacobian need no
-    integration). Returns exactly what :func:`driven_batch` returns.
+    integration). Returns exactly what :func:`driven_batch` returns; ``work`` (one per
+    entry) receives the integration work, 0 for the entries that reuse another's z.
 
     Examples
     --------
@@ -535,6 +574,7 @@ def driven_shared(
     True
     """
     ne = len(offsets) - 1
+    max_sub = _per_run(max_sub, ne)
     first: dict[tuple, int] = {}
     owner = np.empty(ne, dtype=np.int64)
     for e in range(ne):
@@ -543,12 +583,25 @@ def driven_shared(
     lead = np.array(sorted(first.values()), dtype=np.int64)
     if lead.size == ne:
         return driven_batch(
-            coef, b, n, t, theta, theta_dot, offsets, np.zeros(ne), eps, ratio, min_sub, max_sub
+            coef,
+            b,
+            n,
+            t,
+            theta,
+            theta_dot,
+            offsets,
+            np.zeros(ne),
+            eps,
+            ratio,
+            min_sub,
+            max_sub,
+            work,
         )
     lens = np.diff(offsets)
     sub_off = np.zeros(lead.size + 1, dtype=np.int64)
     sub_off[1:] = np.cumsum(lens[lead])
     idx = np.concatenate([np.arange(offsets[e], offsets[e + 1]) for e in lead])
+    work_l = np.zeros(lead.size, dtype=np.int64)
     tq_l, z_l, st_l = driven_batch(
         coef[lead],
         b[lead],
@@ -561,9 +614,13 @@ def driven_shared(
         eps,
         ratio,
         min_sub,
-        max_sub,
+        max_sub[lead],
+        work_l,
     )
     pos = {int(e): j for j, e in enumerate(lead)}
+    if work is not None:
+        work[:] = 0
+        work[lead] = work_l
     tq = np.empty_like(t)
     z = np.empty_like(t)
     status = np.zeros(ne, dtype=np.int64)
