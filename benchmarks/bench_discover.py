@@ -24,7 +24,7 @@ The machine is shared (2 cores, other jobs running): absolute times are noisy, s
 ratio is taken between measurements of the same run, and the load average is recorded.
 
 Run:  python benchmarks/bench_discover.py [--budget 300] [--repeats 3]
-      (writes benchmarks/results/bench_discover.txt; default budget 30x discover's time)
+      (writes benchmarks/results/bench_discover.txt; default budget 60x discover's time, at least 300 s)
 """
 
 from __future__ import annotations
@@ -54,6 +54,10 @@ from hystdisc.models import RIG_PARAMS
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "results"
 DATA = ROOT / "data_synth" / "bouc-wen.csv"
+#: Issue 7: discover (the command, interpreter start included) under this many seconds ...
+TARGET_S = 3.0
+#: ... and at least this many times faster than the swarm at equal or better error.
+TARGET_RATIO = 50.0
 
 
 # ----------------------------------------------------------------------------- machine
@@ -316,8 +320,9 @@ def main(argv: list[str] | None = None) -> str:
         "--budget",
         type=float,
         default=None,
-        help="swarm wall-time budget in s (default: 30x discover's median wall time, at least "
-        "300 s, so that a swarm that does not reach the RMS still shows a ratio above 20x)",
+        help="swarm wall-time budget in s (default: 60x discover's median wall time, at least "
+        "300 s, so that a swarm that does not reach the RMS still shows a ratio above the "
+        "50x target)",
     )
     ap.add_argument("--seed", type=int, default=0, help="seed of the swarm")
     ap.add_argument("-o", "--output", default=str(RESULTS / "bench_discover.txt"))
@@ -356,7 +361,7 @@ def main(argv: list[str] | None = None) -> str:
     say(f"    load average after (a): {os.getloadavg()[0]:.2f}")
     say()
 
-    budget = args.budget if args.budget is not None else max(300.0, 30.0 * disc.median_wall)
+    budget = args.budget if args.budget is not None else max(300.0, 60.0 * disc.median_wall)
     fd = prepared_fit_data(data)
     par = FamilyParametrization(args.family, fd.experiment, {})
     bounds = user_bounds(par, fd)
@@ -400,12 +405,14 @@ def main(argv: list[str] | None = None) -> str:
     )
     say()
     say(
-        f"targets: discover under 10 s: {'yes' if disc.median_wall < 10 else 'NO'} "
+        f"targets (issue 7): discover under {TARGET_S:g} s: "
+        f"{'yes' if disc.median_wall < TARGET_S else 'NO'} "
         f"({disc.median_wall:.2f} s wall, {disc.median_cpu:.2f} s CPU incl. interpreter start); "
-        f"at least 20x faster than the swarm: by CPU time "
-        f"{'yes' if cpu_ratio >= 20 else ('NO' if sw.reached else 'not shown')} "
+        f"at least {TARGET_RATIO:g}x faster than the swarm: by CPU time "
+        f"{'yes' if cpu_ratio >= TARGET_RATIO else ('NO' if sw.reached else 'not shown')} "
         f"({prefix}{cpu_ratio:.1f}x), by wall time "
-        f"{'yes' if ratio >= 20 else ('NO' if sw.reached else 'not shown')} ({prefix}{ratio:.1f}x)"
+        f"{'yes' if ratio >= TARGET_RATIO else ('NO' if sw.reached else 'not shown')} "
+        f"({prefix}{ratio:.1f}x)"
     )
     say(
         "both measured in this one run on a shared 2-core machine; the CPU-time ratio is the "

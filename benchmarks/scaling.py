@@ -6,8 +6,8 @@ noise, theta0 = 0.3 rad, 6 s per run), each from a base of 5 runs (currents 0..1
 
 - **samples per run**: the sampling rate is varied (6 s at 167 Hz .. 16.7 kHz, i.e. 1k to
   100k samples per run; a release decays, so longer runs would only add trimmed tail);
-- **runs**: 2 .. 50 runs, currents evenly spaced over 0..1 A (one run cannot select a
-  family: it needs two currents);
+- **runs**: 1 .. 50 runs, currents evenly spaced over 0..1 A (one run, at 0.5 A, compares
+  the families at one current: ``single_current=True``, current-dependent parameters 0);
 - **library size**: the number of families fitted by output error (1, 2, 3, 5) and of
   hysteresis shapes searched in stage 1 (1 .. 4).
 
@@ -167,12 +167,12 @@ def main(argv: list[str] | None = None) -> str:
         return render(points, saved["header"], saved["quick"], saved["total"], saved["log"])
     if args.quick:
         samples = [1000, 10000, 100000]
-        runs_grid = [2, 10, 50]
+        runs_grid = [1, 2, 10, 50]
         fam_grid = [1, 5]
         shape_grid = [1, 4]
     else:
         samples = [1000, 2000, 3000, 6000, 10000, 20000, 30000, 60000, 100000]
-        runs_grid = [2, 3, 5, 10, 20, 35, 50]
+        runs_grid = [1, 2, 3, 5, 10, 20, 35, 50]
         fam_grid = [1, 2, 3, 5]
         shape_grid = [1, 2, 3, 4]
     log: list[str] = []
@@ -202,7 +202,7 @@ def main(argv: list[str] | None = None) -> str:
     for n in samples:
         run("samples", n, 5, n / DURATION, {})
     for r in runs_grid:
-        run("runs", r, r, 1000.0, {})
+        run("runs", r, r, 1000.0, {"single_current": True} if r == 1 else {})
     for k in fam_grid:
         run("families", k, 5, 1000.0, {"families": list(FAMILY_SETS[k])})
     for k in shape_grid:
@@ -317,11 +317,11 @@ def render(points: list[Point], header: str, quick: bool, total: float, log: lis
             )
             + " A slope up to 1.1 is counted as linear within the noise of this machine."
         )
-        wrong = [p for p in points if p.sweep == "samples" and p.family != "bouc-wen"]
+        wrong = [p for p in points if p.sweep in ("samples", "runs") and p.family != "bouc-wen"]
         if wrong:
             verdict.append(
-                "- Selection changes with the sampling rate: at "
-                + ", ".join(f"{p.samples_per_run} samples/run" for p in wrong)
+                "- Selection changes with the data size: at "
+                + ", ".join(f"{p.runs} runs x {p.samples_per_run} samples" for p in wrong)
                 + " the Bouc-Wen data were attributed to "
                 + ", ".join(sorted({p.family for p in wrong}))
                 + "."

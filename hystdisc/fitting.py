@@ -49,6 +49,8 @@ BULK_PER_CYCLE = 100
 BULK_MIN_SAMPLES = 200
 #: Levenberg-Marquardt iterations on the full data after the bulk fit, at least.
 POLISH_MIN_ITER = 2
+#: Samples simulated per compiled call of a Jacobian (bounds its scratch memory).
+JAC_CHUNK_SAMPLES = 2_000_000
 #: The bulk fit is used when the full data take this many times its integration work.
 BULK_MIN_GAIN = 2.0
 #: Relative cost change at which the bulk fit hands over to the full data.
@@ -621,29 +623,48 @@ class OutputErrorFitter:
         return self._resid_from(preds, runs)
 
     def jacobian(self, v):
+        """Forward-difference Jacobian of :meth:`residuals` (masked rows, all of ``v``).
+
+        Every column of a run is simulated in one compiled call with that run's base; the
+        runs are simulated in groups of about :data:`JAC_CHUNK_SAMPLES` samples, so the
+        memory beyond the Jacobian itself does not grow with the data.
+        """
         x, nu = self._split(v)
         R = self.data.n_runs
         steps = self.rel_step * np.maximum(np.abs(v), 1e-3 * (np.abs(v).max() + 1e-12))
         steps = np.maximum(steps, 1e-10)
-        models, runs, nuis, cols = [], [], [], []
         tm0 = self.par.terms(x)
-        for r in range(R):
-            models.append(tm0)
-            runs.append(r)
-            nuis.append(nu[r])
-            cols.append(-1)
+        tms = []
         for j in range(self.npar):
             xj = x.copy()
             xj[j] += steps[j]
             if xj[j] > self.par.upper[j]:
                 xj[j] -= 2 * steps[j]
-            tmj = self.par.terms(xj)
-            for r in range(R):
-                models.append(tmj)
+            tms.append(self.par.terms(xj))
+        Jm = np.zeros((self._rows[-1], len(v)))
+        group: list[int] = []
+        size = 0
+        for r in range(R):
+            group.append(r)
+            size += self.data.t[r].size * (1 + self.npar + self.nnu)
+            if size >= JAC_CHUNK_SAMPLES or r == R - 1:
+                self._jacobian_runs(group, x, nu, steps, tm0, tms, Jm)
+                group, size = [], 0
+        return Jm
+
+    def _jacobian_runs(self, group, x, nu, steps, tm0, tms, Jm) -> None:
+        """Fill the rows of the runs ``group`` of the Jacobian ``Jm``."""
+        models, runs, nuis, cols = [], [], [], []
+        for r in group:
+            models.append(tm0)
+            runs.append(r)
+            nuis.append(nu[r])
+            cols.append(-1)
+            for j in range(self.npar):
+                models.append(tms[j])
                 runs.append(r)
                 nuis.append(nu[r])
                 cols.append(j)
-        for r in range(R):
             for q in range(self.nnu):
                 nq = nu[r].copy()
                 nq[q] += steps[self.npar + r * self.nnu + q]
@@ -652,15 +673,14 @@ class OutputErrorFitter:
                 nuis.append(nq)
                 cols.append(self.npar + r * self.nnu + q)
         preds = simulate_entries(self.data, models, runs, nuis)
-        base = preds[:R]
-        Jm = np.zeros((self._rows[-1], len(v)))
-        for e in range(R, len(preds)):
-            r = runs[e]
-            j = cols[e]
+        base = {}
+        for e, (r, j) in enumerate(zip(runs, cols, strict=True)):
+            if j < 0:
+                base[r] = preds[e]
+                continue
             h = steps[j] if j >= self.npar or x[j] + steps[j] <= self.par.upper[j] else -steps[j]
             d = (preds[e] - base[r])[self.masks[r]] / h
             Jm[self._rows[r] : self._rows[r + 1], j] = d
-        return Jm
 
     def fit(self, heldout: bool = True) -> OEFit:
         """Levenberg-Marquardt from the parametrization's start; intervals, BIC and (with
