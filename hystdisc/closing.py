@@ -304,6 +304,56 @@ def _span(A: np.ndarray) -> np.ndarray:
     return U[:, s > s[0] * 1e-10]
 
 
+def _model_complement(J, model_cols, npar, nnu, rows) -> Callable[[np.ndarray], np.ndarray]:
+    """``M -> M`` minus its projection on the span of the model's Jacobian columns.
+
+    The model's columns are its parameters (``model_cols``) and each run's ``nnu``
+    initial-state columns (from column ``npar`` on), which are zero outside that run's
+    ``rows``: they are projected out run by run, then the parameters' columns (so the cost
+    and memory are linear in the number of runs, not cubic as an SVD of all columns).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> rng = np.random.default_rng(0)
+    >>> J = np.zeros((8, 3)); J[:, 0] = rng.normal(size=8)
+    >>> J[:4, 1] = rng.normal(size=4); J[4:, 2] = rng.normal(size=4)
+    >>> perp = _model_complement(J, [0], 1, 1, np.array([0, 4, 8]))
+    >>> U = _span(J)
+    >>> y = rng.normal(size=8)
+    >>> bool(np.allclose(perp(y), y - U @ (U.T @ y)))
+    True
+    """
+    A = J[:, model_cols]
+    norms = np.sqrt((A**2).sum(axis=0))
+    A = A[:, norms > 0] / norms[norms > 0]
+    blocks = []
+    for k in range(len(rows) - 1):
+        sl = slice(int(rows[k]), int(rows[k + 1]))
+        cols = slice(npar + k * nnu, npar + (k + 1) * nnu)
+        blocks.append((sl, _span(J[sl, cols]) if nnu else None))
+
+    def perp_runs(M):
+        out = np.array(M, dtype=float, copy=True)
+        for sl, Q in blocks:
+            if Q is not None and Q.shape[1]:
+                out[sl] -= Q @ (Q.T @ out[sl])
+        return out
+
+    if A.shape[1]:
+        Ap = perp_runs(A)
+        U, sv, _ = np.linalg.svd(Ap, full_matrices=False)
+        U = U[:, sv > max(sv[0], 1.0) * 1e-10] if sv.size else U[:, :0]
+    else:
+        U = np.zeros((J.shape[0], 0))
+
+    def perp(M):
+        Mp = perp_runs(M)
+        return Mp - U @ (U.T @ Mp)
+
+    return perp
+
+
 def _explained(G: np.ndarray, r: np.ndarray) -> tuple[float, np.ndarray]:
     """Squared norm of the projection of ``r`` on the columns of ``G``, and the coefficients."""
     if G.size == 0 or not np.any(G):
@@ -495,14 +545,13 @@ def score_effects(
         J = fitter.jacobian(v)
     n0 = len(fit.par.names)
     npar = len(par.names)
-    model_cols = list(range(n0)) + list(range(npar, v.size))
-    U = _span(J[:, model_cols])
+    rows = np.cumsum([0] + [int(m.sum()) for m in data.mask])
+    perp = _model_complement(J, list(range(n0)), npar, fitter.nnu, rows)
     N = r.size
     rss = float(r @ r)
-    r_perp = r - U @ (U.T @ r)
+    r_perp = perp(r)
     rss_perp = float(r_perp @ r_perp)
     s2 = rss / max(N - len(v), 1)
-    rows = np.cumsum([0] + [int(m.sum()) for m in data.mask])
     eq_ev = {}
     if eq is not None:
         try:
@@ -517,7 +566,7 @@ def score_effects(
         cols = list(range(col, col + q))
         col += q
         G = J[:, cols]
-        Gp = G - U @ (U.T @ G)
+        Gp = perp(G)
         gnorm = np.sqrt((G**2).sum())
         if not np.all(np.isfinite(Gp)) or np.sqrt((Gp**2).sum()) <= 1e-8 * gnorm or gnorm == 0:
             red, beta = 0.0, np.zeros(q)
