@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
+REUSE = False
 RIG = ROOT / "data_synth" / "rigs" / "utfsm_mr_damper.toml"
 TEST_RE = re.compile(r"^(\d+(?:x\d+)?mm\d+(?:x\d+)?Hz)(\d+(?:x\d+)?)A$")
 
@@ -48,8 +49,20 @@ def tests_of(folder: Path) -> dict[str, list[Path]]:
     return dict(groups)
 
 
+def _names(effects: list) -> list[str]:
+    return [e["name"] if isinstance(e, dict) else str(e) for e in effects]
+
+
 def hystdisc(*args: str, log: Path | None = None) -> tuple[str, float]:
-    """Run the hystdisc command line; return its stdout and the CPU time of the child."""
+    """Run the hystdisc command line; return its stdout and the CPU time of the child.
+
+    With ``REUSE`` set and ``log`` already written (an earlier, interrupted run of this
+    script), the command is not run again and the recorded CPU time is returned.
+    """
+    if REUSE and log is not None and log.exists() and log.with_suffix(".cpu").exists():
+        return log.read_text(encoding="utf-8").split("\n--- stderr ---")[0], float(
+            log.with_suffix(".cpu").read_text()
+        )
     t0 = os.times()
     proc = subprocess.run(
         [sys.executable, "-m", "hystdisc", *args], capture_output=True, text=True, check=False
@@ -59,9 +72,10 @@ def hystdisc(*args: str, log: Path | None = None) -> tuple[str, float]:
         log.write_text(proc.stdout + "\n--- stderr ---\n" + proc.stderr, encoding="utf-8")
     if proc.returncode != 0:
         raise SystemExit(f"hystdisc {' '.join(args)} failed: {proc.stderr.strip()[-500:]}")
-    return proc.stdout, (t1.children_user - t0.children_user) + (
-        t1.children_system - t0.children_system
-    )
+    cpu = (t1.children_user - t0.children_user) + (t1.children_system - t0.children_system)
+    if log is not None:
+        log.with_suffix(".cpu").write_text(f"{cpu:.3f}\n")
+    return proc.stdout, cpu
 
 
 def pooled_errors(pred_csv: Path) -> tuple[float, float]:
@@ -103,7 +117,8 @@ def fold(folder: Path, work: Path, name: str, groups: dict[str, list[Path]], eff
     _, cpu = hystdisc(*args, log=work / f"without_{name}.log")
     wall = time.perf_counter() - t0
     res = json.loads((out / "results.json").read_text(encoding="utf-8"))
-    row = {"test": name, "family": res["family"], "effects": res.get("effects", []), "cpu": cpu}
+    row = {"test": name, "family": res["family"], "effects": _names(res.get("effects", []))}
+    row["cpu"] = cpu
     row["wall"] = wall
     for label, extra in (("model", []), ("bingham", ["--family", "bingham"])):
         pred = work / f"pred_{name}_{label}.csv"
@@ -195,7 +210,7 @@ def report(full: dict, rows: list[dict], effects: bool, currents: list[dict] | N
         f"data_synth/rigs/utfsm_mr_damper.toml`{'' if effects else ' --no-effects'}: "
         f"{full['wall']:.0f} s wall, {full['cpu']:.0f} s CPU (load average "
         f"{os.getloadavg()[0]:.1f} at the end). Selected: **{res['family']}**"
-        + (f" + {', '.join(res['effects'])}" if res.get("effects") else "")
+        + (f" + {', '.join(_names(res['effects']))}" if res.get("effects") else "")
         + ".",
         "",
         "| family | RMS force error (N) | held-out RMS (N) | BIC |",
@@ -269,7 +284,12 @@ def main(argv=None) -> int:
     ap.add_argument("--folds", type=int, default=6, help="how many left-out tests (0-6)")
     ap.add_argument("--no-effects", action="store_true", help="skip the closing loop")
     ap.add_argument("--tests", help="comma-separated subset of tests, e.g. 10mm1Hz,2mm5Hz")
+    ap.add_argument(
+        "--reuse", action="store_true", help="keep the outputs an interrupted run left in --work"
+    )
     args = ap.parse_args(argv)
+    global REUSE
+    REUSE = args.reuse
     folder = Path(args.data) / "utfsm_mr_damper"
     if not folder.is_dir():
         print(f"{folder}: not found; fix: set HYSTDISC_DATA", file=sys.stderr)
