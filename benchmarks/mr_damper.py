@@ -200,7 +200,13 @@ def subset_validation(folder: Path, train=CI_TRAIN, test=CI_TEST, close_loop=Fal
     return out
 
 
-def report(full: dict, rows: list[dict], effects: bool, currents: list[dict] | None = None) -> str:
+def report(
+    full: dict,
+    rows: list[dict],
+    effects: bool,
+    currents: list[dict] | None = None,
+    subset: dict | None = None,
+) -> str:
     res = full["results"]
     fams = res["families"]
     lines = [
@@ -273,6 +279,16 @@ def report(full: dict, rows: list[dict], effects: bool, currents: list[dict] | N
         m = np.mean([r["model"][1] for r in rows])
         b = np.mean([r["bingham"][1] for r in rows])
         lines.append(f"| mean | | | {m:.1%} | | {b:.1%} | |")
+    if subset:
+        lines += [
+            "",
+            f"Small check run by `tests/test_measured.py` (in process, all five families, no "
+            f"loop): discover on {' + '.join(CI_TRAIN)} (10 files), predict {CI_TEST}: selected "
+            f"{subset['family']} (fit RMS {subset['fit_rms'][subset['family']]:.1f} N), "
+            f"held-out RMS {subset['model'][0]:.1f} N, NRMSE {subset['model'][1]:.1%}; Bingham "
+            f"{subset['bingham'][0]:.1f} N, NRMSE {subset['bingham'][1]:.1%}; "
+            f"{subset['cpu']:.0f} s CPU.",
+        ]
     return "\n".join(lines) + "\n"
 
 
@@ -311,7 +327,8 @@ def main(argv=None) -> int:
         print(f"leave out {name}", file=sys.stderr, flush=True)
         rows.append(fold(folder, work, name, groups, effects))
         Path(args.out).write_text(report(full, rows, effects, currents), encoding="utf-8")
-    text = report(full, rows, effects, currents)
+    subset = subset_validation(folder) if len(groups) == 6 else None
+    text = report(full, rows, effects, currents, subset)
     Path(args.out).write_text(text, encoding="utf-8")
     print(text)
     print(f"wrote {args.out}")
