@@ -452,7 +452,17 @@ class TermParametrization(Parametrization):
 
 
 def levenberg_marquardt(
-    fun, jac, x0, lower, upper, max_iter=60, tol=1e-6, return_jac=False, jac0=None, r0=None
+    fun,
+    jac,
+    x0,
+    lower,
+    upper,
+    max_iter=60,
+    tol=1e-6,
+    return_jac=False,
+    jac0=None,
+    r0=None,
+    gram=None,
 ):
     """Bounded Levenberg-Marquardt on the normal equations (N >> p, so the p x p Gram matrix
     is far cheaper than the SVD of the tall Jacobian that scipy's trust-region solvers use).
@@ -466,7 +476,7 @@ def levenberg_marquardt(
     None). ``jac0``, an approximation of the Jacobian at ``x0`` (e.g. interpolated from a
     coarser grid), is used for the first step instead of evaluating ``jac``; every later
     step and the convergence test after it use ``jac``. ``r0`` is ``fun(x0)`` when already
-    known.
+    known; ``gram(J)`` computes ``J.T @ J`` (e.g. from a known block structure).
 
     Examples
     --------
@@ -498,7 +508,7 @@ def levenberg_marquardt(
             J = jac(x)
             njev += 1
             J_at_x = J
-        A = J.T @ J
+        A = J.T @ J if gram is None else gram(J)
         g = J.T @ r
         d = np.diag(A).copy()
         d[d <= 0] = 1.0
@@ -597,6 +607,26 @@ class OutputErrorFitter:
         self.nnu = data.n_nuisance(self.state)
         self.masks = data.mask
         self._rows = np.cumsum([0] + [int(m.sum()) for m in data.mask])
+
+    def gram(self, J: np.ndarray) -> np.ndarray:
+        """``J.T @ J`` of this fit's Jacobian from its blocks: a run's initial-state columns
+        are zero outside the run's rows (linear in the runs, where the dense product is
+        cubic)."""
+        k, nn = self.npar, self.nnu
+        if nn == 0 or self.data.n_runs < 2:
+            return J.T @ J
+        A = np.zeros((J.shape[1], J.shape[1]))
+        Jg = J[:, :k]
+        A[:k, :k] = Jg.T @ Jg
+        for r in range(self.data.n_runs):
+            rows = slice(self._rows[r], self._rows[r + 1])
+            c = slice(k + r * nn, k + (r + 1) * nn)
+            Jn = J[rows, c]
+            B = Jg[rows].T @ Jn
+            A[:k, c] = B
+            A[c, :k] = B.T
+            A[c, c] = Jn.T @ Jn
+        return A
 
     # split the full vector
     def _split(self, v):
@@ -719,6 +749,7 @@ class OutputErrorFitter:
                     max_iter=self.max_nfev,
                     tol=BULK_TOL,
                     return_jac=True,
+                    gram=coarse.gram,
                 )
                 # the sensitivities are smooth in time: the coarse Jacobian, splined to every
                 # sample, makes the first full-data step (the final Jacobian checks it)
@@ -736,6 +767,7 @@ class OutputErrorFitter:
             return_jac=True,
             jac0=jac0,
             r0=r0,
+            gram=self.gram,
         )
         return self._finish(v, nfev + used, ok, heldout, Jv)
 
@@ -770,7 +802,7 @@ class OutputErrorFitter:
         s2 = rss / max(N - k, 1)
         # covariance with column scaling for conditioning
         # the small Gram matrix, column-scaled (no scaled copy of the tall Jacobian)
-        gram = Jm.T @ Jm
+        gram = self.gram(Jm)
         scale = np.sqrt(np.clip(np.diag(gram), 0.0, None))
         scale[scale == 0] = 1.0
         # eigen-decomposition of the small Gram matrix (much cheaper than an SVD of J)
@@ -858,15 +890,21 @@ class OutputErrorFitter:
         sq = 0.0
         cnt = 0
         preds = []
-        G = Jm.T @ Jm if gram is None else gram
+        G = self.gram(Jm) if gram is None else gram
         g = Jm.T @ res
         for r in range(R):
             sl = slice(self._rows[r], self._rows[r + 1])
             cols = np.ones(len(v), dtype=bool)
             cols[self.npar + r * self.nnu : self.npar + (r + 1) * self.nnu] = False
-            Jr = Jm[sl]
-            Go = (G - Jr.T @ Jr)[np.ix_(cols, cols)]
-            go = (g - Jr.T @ res[sl])[cols]
+            # the run's rows touch the parameters and its own initial state only
+            nz = np.r_[: self.npar, self.npar + r * self.nnu : self.npar + (r + 1) * self.nnu]
+            Jr = Jm[sl, nz]
+            Go = G.copy()
+            Go[np.ix_(nz, nz)] -= Jr.T @ Jr
+            Go = Go[np.ix_(cols, cols)]
+            go = g.copy()
+            go[nz] -= Jr.T @ res[sl]
+            go = go[cols]
             scale = np.sqrt(np.clip(np.diag(Go), 0, None))
             scale[scale == 0] = 1.0
             Gs = Go / np.outer(scale, scale)
