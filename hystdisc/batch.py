@@ -303,7 +303,9 @@ def discover_many(
         from joblib import Parallel, delayed
 
         par = Parallel(n_jobs=min(jobs, n) if jobs > 0 else jobs, return_as="generator")
-        gen = par(delayed(discover_one)(src, load_opts, disc_opts) for src in sources)
+        # one thread per dataset: the processes already fill the cores
+        opts = {"n_jobs": 1, **dict(disc_opts)}
+        gen = par(delayed(discover_one)(src, load_opts, opts) for src in sources)
         for k, item in enumerate(gen):
             items[k] = item
             done(k, item)
