@@ -71,6 +71,9 @@ def _execute(path: Path, workdir: Path):
 @pytest.fixture(scope="module")
 def executed(tmp_path_factory):
     """All notebooks, executed concurrently (one kernel each) on first use."""
+    if os.environ.get("HYSTDISC_DATA"):
+        # the kernels run in their own folders: a relative data path must not break them
+        os.environ["HYSTDISC_DATA"] = str(Path(os.environ["HYSTDISC_DATA"]).resolve())
     pool = ThreadPoolExecutor(max_workers=min(4, max(len(NOTEBOOKS), 1)))
     futures = {p: pool.submit(_execute, p, tmp_path_factory.mktemp(p.stem)) for p in NOTEBOOKS}
     yield futures
