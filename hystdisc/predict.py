@@ -101,11 +101,7 @@ def initial_state(tm: TermModel, run, der, input_hold: str = "cubic") -> tuple[f
 
     with np.errstate(all="ignore"):
         sol = least_squares(resid, start[:free], x_scale="jac", max_nfev=50)
-    v = (
-        sol.x
-        if np.all(np.isfinite(sol.x))
-        and sol.cost <= 0.5 * resid(start[:free]) @ resid(start[:free])
-        else start[:free]
-    )
+    # least_squares only accepts steps that lower the cost: its result is never worse
+    v = sol.x if np.all(np.isfinite(sol.x)) else start[:free]
     full = np.concatenate([v, start[free:]])
     return float(full[0]), float(full[1]), float(full[2])
