@@ -36,6 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hystdisc.cli.common import progress_printer
 from hystdisc.discovery import Discovery
 from hystdisc.io import Dataset, Run, load
 from hystdisc.models import TermModel, get_family
@@ -258,12 +259,7 @@ def main(argv=None) -> int:
             file=sys.stderr,
         )
         return 2
-    t0 = time.perf_counter()
-
-    def say(msg):
-        print(f"[{time.perf_counter() - t0:6.1f} s] {msg}", file=sys.stderr, flush=True)
-
-    out = run(folder, close_loop=not args.no_effects, say=say)
+    out = run(folder, close_loop=not args.no_effects, say=progress_printer(quiet=False))
     text = table(out)
     Path(args.out).write_text(text, encoding="utf-8")
     print(text)
