@@ -14,25 +14,25 @@ from __future__ import annotations
 __version__ = "0.1.0"
 
 from hystdisc.errors import HystdiscError, HystdiscWarning  # noqa: E402
-from hystdisc.models import Model, TermModel  # noqa: E402
+from hystdisc.models.core import Model, TermModel  # noqa: E402
 
 
 def __getattr__(name: str):
     # heavier modules (pysindy, the estimator) load on first use
     if name == "Discovery":
-        from hystdisc.discovery import Discovery
+        from hystdisc.discovery.stage1 import Discovery
 
         return Discovery
     if name == "Results":
-        from hystdisc.results import Results
+        from hystdisc.results.core import Results
 
         return Results
     if name == "load":
-        from hystdisc.io import load
+        from hystdisc.data.io import load
 
         return load
     if name == "generate":
-        from hystdisc.synth import generate
+        from hystdisc.simulation.synth import generate
 
         return generate
     raise AttributeError(f"module 'hystdisc' has no attribute {name!r}")

@@ -33,9 +33,9 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 
 from hystdisc import Discovery, Model, generate
-from hystdisc.plotting import loops_figure, plot_family_comparison, plot_fit
-from hystdisc.report import FAMILY_COLORS, fit_signals, model_loops, write_report
-from hystdisc.studies import loop
+from hystdisc.plotting.core import loops_figure, plot_family_comparison, plot_fit
+from hystdisc.report.core import FAMILY_COLORS, fit_signals, model_loops, write_report
+from hystdisc.simulation.studies import loop
 
 FAST = os.environ.get("HYSTDISC_NOTEBOOK_FAST") == "1"
 DURATION = 2.5 if FAST else 4.0
@@ -123,7 +123,7 @@ for r in (0, run):
 # %% [markdown]
 # ## The fitted models under one imposed sine (the seed's figures 23 and 24)
 #
-# `hystdisc.studies.loop` drives a model with `theta = A sin(2 pi f t)` and returns the
+# `hystdisc.simulation.studies.loop` drives a model with `theta = A sin(2 pi f t)` and returns the
 # steady loop of the damper torque. Fed with each fitted model, it compares the families
 # the way the seed's benchmarking section does, but with fitted rather than hand-tuned
 # parameters.

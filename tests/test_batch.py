@@ -12,13 +12,12 @@ from pathlib import Path
 
 import pytest
 
-from hystdisc import batch
-from hystdisc.batch import discover_many
-from hystdisc.cli import build_parser, main
+from hystdisc.cli import batch, build_parser, main
+from hystdisc.cli.batch import discover_many
 from hystdisc.cli.common import discovery_options
-from hystdisc.io import write_csv
-from hystdisc.models import Model
-from hystdisc.synth import generate
+from hystdisc.data.io import write_csv
+from hystdisc.models.core import Model
+from hystdisc.simulation.synth import generate
 
 # small datasets: 3 currents, 3 s; a reduced family list keeps the test well under a minute
 OPTS = ["--families", "dahl,bouc-wen", "--quiet", "--force"]
@@ -148,7 +147,7 @@ def test_unreachable_scheduler_is_one_line_within_the_timeout(datasets, tmp_path
     argv = ["discover", *map(str, datasets), "--each", "--scheduler", "tcp://127.0.0.1:1"]
     argv += ["--out", str(tmp_path), *OPTS]
     code = (
-        "import sys, time\nimport distributed, hystdisc.batch, hystdisc.cli.discover\n"
+        "import sys, time\nimport distributed, hystdisc.cli.batch, hystdisc.cli.discover\n"
         "from hystdisc.cli import main\n"
         f"t = time.monotonic()\nrc = main({argv!r})\n"
         "print(f'{time.monotonic() - t:.3f}')\nsys.exit(rc)\n"

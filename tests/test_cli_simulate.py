@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 
 from hystdisc.cli import main
+from hystdisc.data.io import read_csv
 from hystdisc.errors import HystdiscError
-from hystdisc.io import read_csv
-from hystdisc.models import Model
-from hystdisc.synth import generate, generate_from_scenario, load_scenario
+from hystdisc.models.core import Model
+from hystdisc.simulation.synth import generate, generate_from_scenario, load_scenario
 
 REPO = Path(__file__).resolve().parents[1]
 DATA_SYNTH = REPO / "data_synth"

@@ -15,20 +15,20 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from hystdisc.closing import (
+from hystdisc.closing.loop import (
     EFFECT_BIC_MARGIN,
     assess_residual,
     candidate_effects,
     score_effects,
 )
-from hystdisc.discovery import Discovery
-from hystdisc.fitting import FamilyParametrization, FitData
-from hystdisc.io import Dataset, Run
-from hystdisc.library import FAMILY_SHAPE
-from hystdisc.models import EFFECTS, Model
-from hystdisc.predict import predict_dataset
-from hystdisc.results import Results
-from hystdisc.synth import generate
+from hystdisc.data.io import Dataset, Run
+from hystdisc.discovery.library import FAMILY_SHAPE
+from hystdisc.discovery.stage1 import Discovery
+from hystdisc.fitting.output_error import FamilyParametrization, FitData
+from hystdisc.fitting.predict import predict_dataset
+from hystdisc.models.core import EFFECTS, Model
+from hystdisc.results.core import Results
+from hystdisc.simulation.synth import generate
 
 NOISE = 1e-3
 CURRENTS = (0.0, 0.5, 1.0)

@@ -21,11 +21,11 @@ import numpy as np
 import pytest
 
 from hystdisc.cli import build_parser, main
-from hystdisc.discovery import Discovery
+from hystdisc.data.io import Dataset, Run, write_csv
+from hystdisc.discovery.stage1 import Discovery
 from hystdisc.errors import HystdiscError, HystdiscWarning
-from hystdisc.io import Dataset, Run, write_csv
-from hystdisc.models import Model
-from hystdisc.synth import generate
+from hystdisc.models.core import Model
+from hystdisc.simulation.synth import generate
 
 FAST = {"families": ["dahl", "bingham"], "heldout": False, "close_loop": False}
 CLI_FAST = ["--families", "dahl,bingham", "--no-heldout", "--no-effects", "--quiet"]
@@ -168,7 +168,7 @@ def test_divergent_model_in_predict_is_one_line_naming_parameters(base, tmp_path
 
 def test_divergent_family_start_in_output_error_fit(base):
     """A rate that explodes z during the fit is contained (penalized), not propagated."""
-    from hystdisc.fitting import FamilyParametrization, OutputErrorFitter
+    from hystdisc.fitting.output_error import FamilyParametrization, OutputErrorFitter
 
     d = Discovery(**FAST).fit(base)
     start = {"alpha_1": 0.5, "alpha_2": 1.0, "c_1": 0.5, "c_2": 0.5, "k_s": 158.0}
@@ -266,7 +266,7 @@ def test_unclipped_and_quantized_data_raise_no_warning():
         ds = generate("dahl", currents=(0.0, 1.0), duration=3.0, noise=0.0, encoder_counts=counts)
         with warnings.catch_warnings():
             warnings.simplefilter("error", HystdiscWarning)
-            from hystdisc.io import validate
+            from hystdisc.data.io import validate
 
             validate(ds)
 

@@ -15,11 +15,11 @@ from pathlib import Path
 
 import pytest
 
-import hystdisc.io
+import hystdisc.data.io
 from hystdisc.cli import main
+from hystdisc.data.io import atomic_write_bytes, atomic_write_text, write_csv
 from hystdisc.errors import HystdiscError
-from hystdisc.io import atomic_write_bytes, atomic_write_text, write_csv
-from hystdisc.synth import generate
+from hystdisc.simulation.synth import generate
 
 PRECIOUS = "the user's own file\n"
 FAST_DISCOVER = ["--families", "dahl,bingham", "--no-heldout", "--no-effects", "--quiet"]
@@ -216,7 +216,7 @@ def test_ctrl_c_over_an_existing_file_keeps_it(tmp_path, capsys, monkeypatch):
 
 
 def test_ctrl_c_in_the_serializer_leaves_nothing(tmp_path, data_csv, capsys, monkeypatch):
-    from hystdisc.results import Results
+    from hystdisc.results.core import Results
 
     monkeypatch.setattr(Results, "to_json", _interrupt)
     out = tmp_path / "out"
@@ -227,7 +227,7 @@ def test_ctrl_c_in_the_serializer_leaves_nothing(tmp_path, data_csv, capsys, mon
 
 
 def test_ctrl_c_during_the_fit_leaves_nothing(tmp_path, data_csv, capsys, monkeypatch):
-    from hystdisc.discovery import Discovery
+    from hystdisc.discovery.stage1 import Discovery
 
     monkeypatch.setattr(Discovery, "fit", _interrupt)
     out = tmp_path / "out"
@@ -241,7 +241,7 @@ def test_ctrl_c_message_is_true_after_some_outputs(tmp_path, capsys, monkeypatch
     for seed in (1, 2):
         ds = generate("dahl", currents=(0.0, 1.0), duration=1.0, seed=seed)
         files.append(write_csv(ds, tmp_path / f"rig{seed}.csv"))
-    real = hystdisc.io.atomic_write_text
+    real = hystdisc.data.io.atomic_write_text
     calls = []
 
     def second_interrupts(path, text, force=False):
@@ -250,7 +250,7 @@ def test_ctrl_c_message_is_true_after_some_outputs(tmp_path, capsys, monkeypatch
             raise KeyboardInterrupt
         return real(path, text, force=force)
 
-    monkeypatch.setattr(hystdisc.io, "atomic_write_text", second_interrupts)
+    monkeypatch.setattr(hystdisc.data.io, "atomic_write_text", second_interrupts)
     out = tmp_path / "out"
     code, err = cli(["discover", *files, "--each", "--out", out, *FAST_DISCOVER], capsys)
     _check_interrupted(code, err)

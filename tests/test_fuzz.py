@@ -39,8 +39,7 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 from hystdisc.cli import main
-from hystdisc.errors import HystdiscError, HystdiscWarning
-from hystdisc.io import (
+from hystdisc.data.io import (
     CANONICAL_COLUMNS,
     EXPERIMENTS,
     MIN_SAMPLES,
@@ -53,9 +52,10 @@ from hystdisc.io import (
     validate,
     write_csv,
 )
-from hystdisc.models import FAMILIES, Model, TermModel
-from hystdisc.results import Results
-from hystdisc.synth import (
+from hystdisc.errors import HystdiscError, HystdiscWarning
+from hystdisc.models.core import FAMILIES, Model, TermModel
+from hystdisc.results.core import Results
+from hystdisc.simulation.synth import (
     SCENARIO_KEYS,
     generate,
     generate_from_scenario,
@@ -1619,7 +1619,7 @@ def test_api_argument_regressions(tmp_path, call, words):
 
 
 def test_generate_refuses_absurd_sizes():
-    from hystdisc.synth import generate
+    from hystdisc.simulation.synth import generate
 
     for kw in ({"duration": 1e200, "fs": 1e200}, {"duration": 1e12}):
         with pytest.raises(HystdiscError) as exc:

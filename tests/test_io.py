@@ -1,4 +1,4 @@
-"""Tests for hystdisc.io: readers, writers, checks, noise estimate, trimming."""
+"""Tests for hystdisc.data.io: readers, writers, checks, noise estimate, trimming."""
 
 from __future__ import annotations
 
@@ -10,8 +10,7 @@ import numpy as np
 import pytest
 import scipy.io
 
-from hystdisc.errors import HystdiscError
-from hystdisc.io import (
+from hystdisc.data.io import (
     EXPERIMENTS,
     Dataset,
     Run,
@@ -28,6 +27,7 @@ from hystdisc.io import (
     validate,
     write_csv,
 )
+from hystdisc.errors import HystdiscError
 
 RIG_TOML = """\
 experiment = "driven"

@@ -10,11 +10,11 @@ from pathlib import Path
 import pytest
 
 from hystdisc.cli import main
-from hystdisc.discovery import Discovery
+from hystdisc.discovery.stage1 import Discovery
 from hystdisc.errors import HystdiscError
-from hystdisc.models import Model
-from hystdisc.report import SECTIONS, model_loops, write_report
-from hystdisc.synth import generate, write_dataset
+from hystdisc.models.core import Model
+from hystdisc.report.core import SECTIONS, model_loops, write_report
+from hystdisc.simulation.synth import generate, write_dataset
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 NASTY = 'synthetic <script>alert("x")</script> & "q"'

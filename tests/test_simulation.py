@@ -17,7 +17,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from hystdisc.errors import HystdiscError
-from hystdisc.models import (
+from hystdisc.models.core import (
     EFFECTS,
     FAMILIES,
     HYSTERESIS_TERM_NAMES,
@@ -27,8 +27,8 @@ from hystdisc.models import (
     Model,
     TermModel,
 )
-from hystdisc.simulation import simulate_driven_runs, simulate_mech, simulate_release
-from hystdisc.synth import generate, make_input
+from hystdisc.simulation.core import simulate_driven_runs, simulate_mech, simulate_release
+from hystdisc.simulation.synth import generate, make_input
 
 FAMILY_NAMES = ("bingham", "dahl", "lugre", "bouc-wen", "bouc-wen-std")
 CURRENTS = (0.0, 0.5, 1.0)

@@ -1,7 +1,7 @@
 """The seed paper's qualitative statements (sections 4.2-4.6), checked on simulated loops.
 
 Every loop is the steady-state last cycle of ``theta = 0.3 sin(2 pi t)`` (see
-:func:`hystdisc.studies.loop`); the torque is the damper torque.
+:func:`hystdisc.simulation.studies.loop`); the torque is the damper torque.
 """
 
 from __future__ import annotations
@@ -13,9 +13,9 @@ from matplotlib.figure import Figure
 
 from hystdisc.cli import main
 from hystdisc.errors import HystdiscError
-from hystdisc.plotting import loops_figure, plot_loops, plot_runs
-from hystdisc.studies import loop, parameter_study, plot_study
-from hystdisc.synth import generate
+from hystdisc.plotting.core import loops_figure, plot_loops, plot_runs
+from hystdisc.simulation.studies import loop, parameter_study, plot_study
+from hystdisc.simulation.synth import generate
 
 # ------------------------------------------------------------------ loop measurements
 

@@ -1,14 +1,14 @@
-"""hystdisc.synth: argument checks, run layout, inputs, rounding for the CSV files."""
+"""hystdisc.simulation.synth: argument checks, run layout, inputs, rounding for the CSV files."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
+from hystdisc.data.io import read_csv
 from hystdisc.errors import HystdiscError
-from hystdisc.io import read_csv
-from hystdisc.models import Model
-from hystdisc.synth import (
+from hystdisc.models.core import Model
+from hystdisc.simulation.synth import (
     DEFAULT_INPUT,
     generate,
     make_input,

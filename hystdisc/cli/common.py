@@ -7,8 +7,8 @@ import sys
 import time
 from collections.abc import Callable
 
+from hystdisc.data.io import Dataset, load
 from hystdisc.errors import HystdiscError
-from hystdisc.io import Dataset, load
 
 
 def add_data_options(p: argparse.ArgumentParser) -> None:
@@ -80,8 +80,8 @@ def progress_printer(quiet: bool) -> Callable[[str], None] | None:
 
 def add_discovery_options(p: argparse.ArgumentParser) -> None:
     """Options of the estimator shared by ``discover`` and ``report`` (plus the data options)."""
-    from hystdisc.discovery import ALL_FAMILIES
-    from hystdisc.models import FAMILIES
+    from hystdisc.discovery.stage1 import ALL_FAMILIES
+    from hystdisc.models.core import FAMILIES
 
     p.add_argument(
         "--model", help=f"declare the family instead of selecting one: {', '.join(FAMILIES)}"
@@ -116,7 +116,7 @@ def add_discovery_options(p: argparse.ArgumentParser) -> None:
 
 
 def discovery_options(args: argparse.Namespace) -> dict:
-    """Keyword arguments of :class:`~hystdisc.discovery.Discovery` from the shared options."""
+    """Keyword arguments of :class:`~hystdisc.discovery.stage1.Discovery` from the shared options."""
     families = None
     if args.families:
         families = [f.strip() for f in args.families.split(",") if f.strip()]

@@ -22,7 +22,7 @@ from hystdisc.cli.common import (
     load_data,
     progress_printer,
 )
-from hystdisc.discovery import Discovery
+from hystdisc.discovery.stage1 import Discovery
 from hystdisc.errors import HystdiscError
 
 
@@ -92,7 +92,7 @@ def run(args: argparse.Namespace) -> int:
             f"{json_path}: exists; fix: pass --force to overwrite or choose another --json/--out"
         )
     if args.report:
-        from hystdisc.report import check_report_path
+        from hystdisc.report.core import check_report_path
 
         check_report_path(args.report, args.force)
     data = load_data(args, args.files)
@@ -106,7 +106,7 @@ def run(args: argparse.Namespace) -> int:
     print(res.report())
     print(f"\nwrote {json_path}")
     if args.report:
-        from hystdisc.report import write_report
+        from hystdisc.report.core import write_report
 
         path = write_report(
             disc, data, args.report, force=args.force, progress=progress_printer(args.quiet)
@@ -117,8 +117,8 @@ def run(args: argparse.Namespace) -> int:
 
 def run_each(args: argparse.Namespace) -> int:
     """``--each``: every FILE is a dataset; serial, ``--jobs N`` or ``--scheduler ADDRESS``."""
-    from hystdisc.batch import discover_many, output_paths
-    from hystdisc.io import atomic_write_text
+    from hystdisc.cli.batch import discover_many, output_paths
+    from hystdisc.data.io import atomic_write_text
 
     if args.json:
         raise HystdiscError(

@@ -12,11 +12,11 @@ import argparse
 import numpy as np
 
 from hystdisc.cli.common import add_data_options, load_data
+from hystdisc.data.io import atomic_write_text
 from hystdisc.errors import HystdiscError
-from hystdisc.io import atomic_write_text
-from hystdisc.predict import predict_dataset
-from hystdisc.results import Results
-from hystdisc.simulation import HOLDS
+from hystdisc.fitting.predict import predict_dataset
+from hystdisc.results.core import Results
+from hystdisc.simulation.core import HOLDS
 
 
 def add_parser(sub) -> argparse.ArgumentParser:

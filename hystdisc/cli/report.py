@@ -21,7 +21,7 @@ from hystdisc.cli.common import (
     load_data,
     progress_printer,
 )
-from hystdisc.discovery import Discovery
+from hystdisc.discovery.stage1 import Discovery
 from hystdisc.errors import HystdiscError
 
 HELP = "discover the model and write an HTML model-comparison report (+ Markdown summary)"
@@ -66,7 +66,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``hystdisc report``."""
-    from hystdisc.report import check_report_path, markdown_path, write_report
+    from hystdisc.report.core import check_report_path, markdown_path, write_report
 
     out = Path(args.output)
     markdown = not args.no_markdown

@@ -18,8 +18,8 @@ from typing import Any
 import numpy as np
 
 from hystdisc.errors import HystdiscError
-from hystdisc.models import FAMILIES
-from hystdisc.synth import (
+from hystdisc.models.core import FAMILIES
+from hystdisc.simulation.synth import (
     generate_from_scenario,
     load_scenario,
     parse_drive,

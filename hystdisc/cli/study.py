@@ -12,9 +12,9 @@ import io
 from pathlib import Path
 
 from hystdisc.cli.simulate import _float, _int, parse_assignments, parse_effect
+from hystdisc.data.io import atomic_write_bytes
 from hystdisc.errors import HystdiscError
-from hystdisc.io import atomic_write_bytes
-from hystdisc.models import FAMILIES
+from hystdisc.models.core import FAMILIES
 
 HELP = "plot a model's hysteresis loops while one parameter varies"
 FORMATS = (".png", ".pdf", ".svg")
@@ -56,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
     """Execute ``hystdisc study``."""
     from matplotlib.figure import Figure
 
-    from hystdisc.studies import parameter_study, plot_study
+    from hystdisc.simulation.studies import parameter_study, plot_study
 
     out = Path(args.output)
     if out.suffix.lower() not in FORMATS:

@@ -1,9 +1,9 @@
 """Discover many datasets at once: serially, on local processes, or on a Dask cluster.
 
 ``hystdisc discover A.csv B.csv --each --jobs 2`` treats every file (or folder) as a
-dataset of its own and runs :class:`~hystdisc.discovery.Discovery` on each, in parallel
+dataset of its own and runs :class:`~hystdisc.discovery.stage1.Discovery` on each, in parallel
 over datasets. The work of one dataset is always done by the same function,
-:func:`discover_one`, in a fresh :class:`~hystdisc.discovery.Discovery` whose options are
+:func:`discover_one`, in a fresh :class:`~hystdisc.discovery.stage1.Discovery` whose options are
 passed by value, and the ``results.json`` text is produced where the fit ran; the parent
 process only writes files. So the results of a parallel run are byte-identical to those of
 the serial run (discovery is deterministic for a given ``seed``, and it limits BLAS to one
@@ -27,8 +27,8 @@ stop the others: its one-line message is returned in :attr:`BatchItem.error`.
 Examples
 --------
 >>> import tempfile, pathlib
->>> from hystdisc.io import write_csv
->>> from hystdisc.synth import generate
+>>> from hystdisc.data.io import write_csv
+>>> from hystdisc.simulation.synth import generate
 >>> with tempfile.TemporaryDirectory() as d:
 ...     f = pathlib.Path(d, "dahl.csv")
 ...     _ = write_csv(generate("dahl", currents=(0, 1), duration=2, seed=1), f)
@@ -96,19 +96,19 @@ def discover_one(
     Parameters
     ----------
     source : path-like
-        A data file or a folder of runs (see :func:`hystdisc.io.load`).
+        A data file or a folder of runs (see :func:`hystdisc.data.io.load`).
     load_options : dict, optional
-        Keyword arguments of :func:`hystdisc.io.load` (``experiment``, ``rig``, ...).
+        Keyword arguments of :func:`hystdisc.data.io.load` (``experiment``, ``rig``, ...).
     discovery_options : dict, optional
-        Keyword arguments of :class:`~hystdisc.discovery.Discovery`.
+        Keyword arguments of :class:`~hystdisc.discovery.stage1.Discovery`.
 
     Returns
     -------
     BatchItem
         The ``results.json`` text and the report, or the error message.
     """
-    from hystdisc.discovery import Discovery
-    from hystdisc.io import load
+    from hystdisc.data.io import load
+    from hystdisc.discovery.stage1 import Discovery
 
     item = BatchItem(str(source))
     with warnings.catch_warnings(record=True) as caught:

@@ -3,7 +3,7 @@
 DESIGN.md section 6, issue 4. After the output-error fit of the selected (or declared)
 family:
 
-1. **Candidates.** The effect catalogue (:data:`hystdisc.models.EFFECTS`) minus the effects
+1. **Candidates.** The effect catalogue (:data:`hystdisc.models.core.EFFECTS`) minus the effects
    whose torque terms the model already has (Bouc-Wen and LuGre carry ``i*theta_dot``,
    Bingham ``sign(theta_dot)``), the effects that need a hysteretic state the model lacks
    (``i^2*z`` in Bingham), the current effects the currents cannot identify (one current
@@ -44,7 +44,7 @@ family:
    the dominant frequency and a sentence such as "a resonance near 6.0 Hz that no
    catalogued effect explains".
 
-:func:`close_loop` runs all of it on a fitted :class:`~hystdisc.discovery.Discovery` and
+:func:`close_loop` runs all of it on a fitted :class:`~hystdisc.discovery.stage1.Discovery` and
 writes the ``effects``, ``effects_tried``, ``unexplained``, ``residual`` and ``model`` keys
 of its results (DESIGN.md section 5).
 """
@@ -56,12 +56,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hystdisc.diagnostics import WHITE_P, ljung_box_pooled, residual_spectrum, spectral_peak
-from hystdisc.fitting import FamilyParametrization, FitData, OEFit, OutputErrorFitter
-from hystdisc.models import EFFECTS, Z_TORQUE_TERMS, TermModel
+from hystdisc.closing.diagnostics import WHITE_P, ljung_box_pooled, residual_spectrum, spectral_peak
+from hystdisc.fitting.output_error import FamilyParametrization, FitData, OEFit, OutputErrorFitter
+from hystdisc.models.core import EFFECTS, Z_TORQUE_TERMS, TermModel
 
 #: An effect is accepted only when its refit lowers BIC by more than this (the margin
-#: within which :mod:`hystdisc.discovery` calls two families equal fits), and refitted only
+#: within which :mod:`hystdisc.discovery.stage1` calls two families equal fits), and refitted only
 #: when the score test predicts such a drop.
 EFFECT_BIC_MARGIN = 6.0
 #: Local refits per round at most (two output-error leaders, the equation-error leader);
@@ -204,7 +204,7 @@ class LoopResult:
 
 
 def _n_levels(currents: np.ndarray) -> int:
-    from hystdisc.io import distinct_currents
+    from hystdisc.data.io import distinct_currents
 
     return len(distinct_currents(currents))
 
@@ -233,7 +233,7 @@ def candidate_effects(fit: OEFit, data: FitData) -> tuple[list[str], list[dict]]
     Parameters
     ----------
     fit : OEFit
-        Fit of a :class:`~hystdisc.fitting.FamilyParametrization` (possibly with effects).
+        Fit of a :class:`~hystdisc.fitting.output_error.FamilyParametrization` (possibly with effects).
     data : FitData
         The data it was fitted to (its currents decide what the current effects need).
 
@@ -369,8 +369,8 @@ def _equation_evidence(
     eq, tm: TermModel, candidates: Sequence[str]
 ) -> dict[str, tuple[float, float]]:
     """Equation-error evidence of each candidate (see the module docstring)."""
-    from hystdisc.models import SIGN_EPS, TORQUE_TERMS
-    from hystdisc.simulation import integrate_z
+    from hystdisc.models.core import SIGN_EPS, TORQUE_TERMS
+    from hystdisc.simulation.core import integrate_z
 
     if tm.has_state:
         z = integrate_z(tm.hysteresis_vector(), tm.n, eq.t, eq.theta_dot, SIGN_EPS)
@@ -429,7 +429,7 @@ def stage1_start(
     eq : EqData
         Equation-error data of the discovery.
     fit : OEFit
-        Fit of a :class:`~hystdisc.fitting.FamilyParametrization`.
+        Fit of a :class:`~hystdisc.fitting.output_error.FamilyParametrization`.
     effects : sequence of str
         Effects of the augmented structure.
     data : FitData
@@ -443,7 +443,7 @@ def stage1_start(
     dict or None
         Parameter values by name; None when stage 1 fails.
     """
-    from hystdisc.discovery import family_start
+    from hystdisc.discovery.stage1 import family_start
 
     fam = fit.par.family
     eff_terms = [t for e in effects for t in EFFECTS[e].terms]
@@ -523,7 +523,7 @@ def score_effects(
     data : FitData
         The data of the fit.
     fit : OEFit
-        Fit of a :class:`~hystdisc.fitting.FamilyParametrization`, at its optimum.
+        Fit of a :class:`~hystdisc.fitting.output_error.FamilyParametrization`, at its optimum.
     candidates : sequence of str
         Effect names (see :func:`candidate_effects`).
     eq : EqData, optional
@@ -627,7 +627,7 @@ def refit_with(
     data : FitData
         The data.
     fit : OEFit
-        Current fit (a :class:`~hystdisc.fitting.FamilyParametrization`).
+        Current fit (a :class:`~hystdisc.fitting.output_error.FamilyParametrization`).
     effect : str
         Catalogue name of the effect to add.
     estimate : dict, optional
@@ -1036,7 +1036,7 @@ def augment(
     data : FitData
         The data the fit was made on.
     fit : OEFit
-        Fit of a :class:`~hystdisc.fitting.FamilyParametrization` (the selected or
+        Fit of a :class:`~hystdisc.fitting.output_error.FamilyParametrization` (the selected or
         declared family).
     noise_std : float
         Estimated measurement noise (data units); raised to :func:`accuracy_floor` when
@@ -1213,7 +1213,7 @@ def _final_entry(fit: OEFit, family: str, effects: list[str]) -> dict:
 
 def _stage1_shape(disc, fit: OEFit) -> np.ndarray | None:
     """The discovery's stage-1 shape constants of the fitted family's hysteresis shape."""
-    from hystdisc.library import FAMILY_SHAPE
+    from hystdisc.discovery.library import FAMILY_SHAPE
 
     shape = FAMILY_SHAPE.get(fit.par.family.name)
     found = getattr(disc, "stage1_", {}).get(shape)
@@ -1221,7 +1221,7 @@ def _stage1_shape(disc, fit: OEFit) -> np.ndarray | None:
 
 
 def close_loop(disc, dataset) -> None:
-    """Close the loop on a fitted :class:`~hystdisc.discovery.Discovery`, in place.
+    """Close the loop on a fitted :class:`~hystdisc.discovery.stage1.Discovery`, in place.
 
     Runs :func:`augment` on the fit of the selected (or declared) family and records the
     outcome: ``disc.final_fit_`` (the fit with every accepted effect), ``disc.effects_``
@@ -1242,7 +1242,7 @@ def close_loop(disc, dataset) -> None:
     import warnings
 
     from hystdisc.errors import HystdiscError, HystdiscWarning
-    from hystdisc.results import Results, term_model_to_dict
+    from hystdisc.results.core import Results, term_model_to_dict
 
     fit = disc.family_fits_[disc.family_]
     progress = getattr(disc, "progress", None)

@@ -9,14 +9,14 @@ terms are selected by pysindy's STLSQ along a threshold path scored by BIC, and 
 are compared by BIC. The winner is the *discovered structure*.
 
 Stage 2 (output error): each family's own structure is fitted by simulating every run
-(:mod:`hystdisc.fitting`), started from a stage-1 fit of that structure; families are
+(:mod:`hystdisc.fitting.output_error`), started from a stage-1 fit of that structure; families are
 ranked by BIC (nested ties resolved towards fewer parameters) and by leave-one-run-out
 held-out RMS.
 
 Examples
 --------
->>> from hystdisc.models import Model
->>> from hystdisc.synth import generate
+>>> from hystdisc.models.core import Model
+>>> from hystdisc.simulation.synth import generate
 >>> data = generate(Model("dahl"), currents=(0, 0.5, 1), duration=3, noise=1e-3, seed=1)
 >>> d = Discovery(families=["dahl", "bingham"], heldout=False).fit(data)
 >>> d.family_
@@ -41,18 +41,18 @@ import pysindy as ps
 from scipy.optimize import minimize
 from threadpoolctl import threadpool_limits
 
-from hystdisc.differentiation import differentiate
+from hystdisc.data.io import Dataset, distinct_currents, estimate_noise, trim_release, validate
+from hystdisc.discovery.differentiation import differentiate
+from hystdisc.discovery.library import DEFAULT_TORQUE_TERMS, FAMILY_SHAPE, SHAPES
 from hystdisc.errors import HystdiscError, HystdiscWarning
-from hystdisc.fitting import (
+from hystdisc.fitting.output_error import (
     FamilyParametrization,
     FitData,
     OEFit,
     OutputErrorFitter,
     TermParametrization,
 )
-from hystdisc.io import Dataset, distinct_currents, estimate_noise, trim_release, validate
-from hystdisc.library import DEFAULT_TORQUE_TERMS, FAMILY_SHAPE, SHAPES
-from hystdisc.models import (
+from hystdisc.models.core import (
     FAMILIES,
     HYSTERESIS_TERM_NAMES,
     TORQUE_TERMS,
@@ -61,7 +61,7 @@ from hystdisc.models import (
     format_equation,
     get_family,
 )
-from hystdisc.simulation import SIGN_EPS, concat_runs, integrate_z_flat
+from hystdisc.simulation.core import SIGN_EPS, concat_runs, integrate_z_flat
 
 ALL_FAMILIES = ("bingham", "dahl", "lugre", "bouc-wen", "bouc-wen-std")
 #: Default upper limit of the threads of one discovery.
@@ -153,8 +153,8 @@ class Design:
     The columns that do not depend on ``z`` (and the regression target) are evaluated once;
     :meth:`build` only writes the ``z`` columns, so the shape search of :func:`_varpro`
     costs one ``z`` integration and one small least-squares solve per evaluation. The
-    values are exactly those of the terms (:data:`hystdisc.models.TORQUE_TERMS`) evaluated
-    on ``[theta, theta_dot, z, i]``, as pysindy's :class:`~hystdisc.library.TorqueLibrary`
+    values are exactly those of the terms (:data:`hystdisc.models.core.TORQUE_TERMS`) evaluated
+    on ``[theta, theta_dot, z, i]``, as pysindy's :class:`~hystdisc.discovery.library.TorqueLibrary`
     computes them.
 
     Parameters
@@ -319,7 +319,7 @@ def fit_shape(
     seed: int = 0,
 ) -> ShapeFit:
     """Stage 1 for one hysteresis shape: variable projection + STLSQ term selection."""
-    from hystdisc.library import torque_terms_for
+    from hystdisc.discovery.library import torque_terms_for
 
     terms = torque_terms_for(shape_name, terms)
     shape = SHAPES[shape_name]
@@ -432,8 +432,8 @@ def family_start(
 
     Examples
     --------
-    >>> from hystdisc.models import Model
-    >>> from hystdisc.synth import generate
+    >>> from hystdisc.models.core import Model
+    >>> from hystdisc.simulation.synth import generate
     >>> data = generate(Model("dahl"), currents=(0, 1), duration=3, noise=1e-4, seed=1)
     >>> d = Discovery(); d.single_current_ = False
     >>> eq, _ = d._prepare(data)
@@ -540,7 +540,7 @@ class Discovery:
         Limit of simulations of the output-error fit per family.
     close_loop : bool
         After the fit, diagnose the residual against the effect catalogue, add effects
-        that improve BIC and test the final residual for whiteness (:mod:`hystdisc.closing`).
+        that improve BIC and test the final residual for whiteness (:mod:`hystdisc.closing.loop`).
     single_current : bool
         Compare the families on runs at one current (a rig without a coil, such as the
         hysteretic benchmark); the current-dependent parameters are fixed at 0. Without it,
@@ -720,10 +720,12 @@ class Discovery:
             return self._fit(dataset)
 
     def _fit(self, dataset: Dataset) -> Discovery:
-        from hystdisc.results import build_results
+        from hystdisc.results.core import build_results
 
         if not isinstance(dataset, Dataset):
-            raise TypeError("Discovery.fit expects a hystdisc.io.Dataset (see hystdisc.io.load)")
+            raise TypeError(
+                "Discovery.fit expects a hystdisc.data.io.Dataset (see hystdisc.data.io.load)"
+            )
         if self.model is not None:
             fams = [get_family(self.model).name]
         else:
@@ -819,7 +821,7 @@ class Discovery:
         self.declared_ = self.model is not None
         self.results_ = build_results(self, dataset)
         if self.close_loop:
-            from hystdisc.closing import close_loop
+            from hystdisc.closing.loop import close_loop
 
             self._say("closing the loop: residual -> catalogued effects")
             close_loop(self, dataset)
@@ -840,7 +842,7 @@ class Discovery:
         Without ``family``: the selected family with the effects the closing loop accepted.
         """
         self._check_fitted()
-        from hystdisc.predict import predict_dataset
+        from hystdisc.fitting.predict import predict_dataset
 
         if family is None and getattr(self, "final_fit_", None) is not None:
             fit = self.final_fit_  # the selected family with its accepted effects

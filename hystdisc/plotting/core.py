@@ -7,7 +7,7 @@ figure. Nothing here calls ``plt.show()`` or changes ``rcParams``.
 Examples
 --------
 >>> import numpy as np
->>> from hystdisc.plotting import plot_loops
+>>> from hystdisc.plotting.core import plot_loops
 >>> t = np.linspace(0, 1, 200)
 >>> th, w = 0.3 * np.sin(2 * np.pi * t), 0.6 * np.pi * np.cos(2 * np.pi * t)
 >>> fig = plot_loops(t, th, w, 2 * np.tanh(5 * w), current=0.5)
@@ -207,11 +207,11 @@ def plot_runs(
 
     Parameters
     ----------
-    dataset : hystdisc.io.Dataset
+    dataset : hystdisc.data.io.Dataset
         The runs; ``theta`` is drawn (``torque`` for driven datasets).
     predictions : sequence or dict, optional
         One simulated signal per run (arrays, or objects with a ``theta``/``torque``
-        attribute such as :class:`~hystdisc.simulation.SimResult`), in run order or keyed
+        attribute such as :class:`~hystdisc.simulation.core.SimResult`), in run order or keyed
         by run name. Drawn dashed in the colour of the measurement.
     ax : Axes or sequence of Axes, optional
         A single Axes overlays all runs; a sequence gives one Axes per run; by default a
@@ -225,7 +225,7 @@ def plot_runs(
 
     Examples
     --------
-    >>> from hystdisc.synth import generate
+    >>> from hystdisc.simulation.synth import generate
     >>> ds = generate("dahl", currents=(0, 1), duration=1.0)
     >>> fig = plot_runs(ds, predictions=[r.theta for r in ds])
     >>> [len(a.lines) for a in fig.axes]
@@ -509,7 +509,7 @@ def plot_residual_spectrum(
     Parameters
     ----------
     residuals : array or list of arrays
-        The residual of one run or of each run (:func:`hystdisc.diagnostics.residual_spectrum`).
+        The residual of one run or of each run (:func:`hystdisc.closing.diagnostics.residual_spectrum`).
     fs : float
         Sampling rate in Hz.
     ax : Axes, optional
@@ -536,7 +536,7 @@ def plot_residual_spectrum(
     (2, 'log')
     >>> import matplotlib.pyplot as plt; plt.close(fig)
     """
-    from hystdisc.diagnostics import residual_spectrum
+    from hystdisc.closing.diagnostics import residual_spectrum
 
     if isinstance(residuals, np.ndarray) and residuals.ndim == 1:
         residuals = [residuals]
@@ -587,7 +587,7 @@ def plot_family_comparison(
     families : dict, Results or results dict
         Family name -> entry with ``rms``, ``bic`` and ``heldout_rms`` (a dict of
         ``results.json``, or the ``OEFit`` objects of ``Discovery.family_fits_``), or a
-        :class:`~hystdisc.results.Results` / ``results.json`` dict holding ``families``.
+        :class:`~hystdisc.results.core.Results` / ``results.json`` dict holding ``families``.
     ax : Axes or pair of Axes, optional
         A pair gives RMS bars and BIC-difference bars; a single Axes the RMS bars with the
         BIC differences written above them; None a new two-panel figure.

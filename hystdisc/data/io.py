@@ -21,7 +21,7 @@ overwrite an existing file unless ``force=True`` and never leave a half-written 
 Examples
 --------
 >>> import numpy as np
->>> from hystdisc.io import Run, Dataset
+>>> from hystdisc.data.io import Run, Dataset
 >>> t = np.arange(100) / 100.0
 >>> ds = Dataset([Run("0", t, np.sin(t), 0.0), Run("1", t, np.sin(t), 0.5)], "release", "demo")
 >>> len(ds), ds.measured(), ds.currents.tolist()
@@ -1426,7 +1426,7 @@ def _validate(dataset: Dataset, need_currents: int) -> Dataset:
         raise input_error(
             None,
             f"expected a Dataset, got {type(dataset).__name__}",
-            "load data with hystdisc.io.load",
+            "load data with hystdisc.data.io.load",
         )
     source = dataset.source
     if not dataset.runs:

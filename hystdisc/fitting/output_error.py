@@ -20,7 +20,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from hystdisc.errors import HystdiscError
-from hystdisc.models import (
+from hystdisc.models.core import (
     EFFECTS,
     RIG_PARAMS,
     Family,
@@ -28,7 +28,7 @@ from hystdisc.models import (
     TermModel,
     get_family,
 )
-from hystdisc.simulation import (
+from hystdisc.simulation.core import (
     N_BASE,
     base_coefficients,
     driven_shared,
@@ -215,7 +215,7 @@ def simulate_entries(
 
     A diverged entry is returned with its non-finite samples replaced by 1e6 (a large,
     finite residual the optimizer backs away from); ``status_out`` receives the flags and
-    ``work_out`` the integration work of each entry (see :func:`~hystdisc.simulation.mech_batch`).
+    ``work_out`` the integration work of each entry (see :func:`~hystdisc.simulation.core.mech_batch`).
     """
     ne = len(runs)
     steps = data.run_steps()
@@ -407,7 +407,7 @@ class TermParametrization(Parametrization):
         J0=1.0,
         experiment="release",
     ):
-        from hystdisc.library import SHAPES
+        from hystdisc.discovery.library import SHAPES
 
         self.shape = SHAPES[shape] if isinstance(shape, str) else shape
         self.torque_terms = list(torque_terms)
@@ -430,7 +430,7 @@ class TermParametrization(Parametrization):
         nt = len(self.torque_terms)
         ns = len(self.shape.shape_names)
         b, n = self.shape.vector(np.asarray(x[nt : nt + ns]))
-        from hystdisc.models import HYSTERESIS_TERM_NAMES
+        from hystdisc.models.core import HYSTERESIS_TERM_NAMES
 
         hyst = {k: float(v) for k, v in zip(HYSTERESIS_TERM_NAMES, b, strict=True) if v != 0.0}
         tm = TermModel(dict(zip(self.torque_terms, map(float, x[:nt]), strict=True)), hyst, n)

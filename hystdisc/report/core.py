@@ -1,6 +1,6 @@
 """The model-comparison report: one self-contained HTML file and a Markdown summary beside it.
 
-:func:`write_report` turns a fitted :class:`~hystdisc.discovery.Discovery` into
+:func:`write_report` turns a fitted :class:`~hystdisc.discovery.stage1.Discovery` into
 ``report.html`` (figures embedded as base64 PNG, inline CSS, no script and no external
 resource, so it opens offline in any browser) and ``report.md`` (the tables, for version
 control and issue trackers). The sections, each an ``<h2>`` with the id in
@@ -31,13 +31,13 @@ control and issue trackers). The sections, each an ``<h2>`` with the id in
     The closing loop: effects tried, before/after RMS, the residual spectrum and whiteness.
 
 Figures are drawn on :class:`matplotlib.figure.Figure` objects (no pyplot state, no change
-to ``rcParams``) with the ``ax=`` functions of :mod:`hystdisc.plotting`.
+to ``rcParams``) with the ``ax=`` functions of :mod:`hystdisc.plotting.core`.
 
 Examples
 --------
 >>> import tempfile, pathlib
->>> from hystdisc.discovery import Discovery
->>> from hystdisc.synth import generate
+>>> from hystdisc.discovery.stage1 import Discovery
+>>> from hystdisc.simulation.synth import generate
 >>> data = generate("dahl", currents=(0, 0.5, 1), duration=2.0, seed=1)
 >>> disc = Discovery(families=["dahl", "bingham"], heldout=False, close_loop=False).fit(data)
 >>> with tempfile.TemporaryDirectory() as d:
@@ -63,9 +63,9 @@ from typing import Any
 import numpy as np
 
 from hystdisc import __version__
+from hystdisc.data.io import Dataset, atomic_write_text, estimate_noise
 from hystdisc.errors import HystdiscError
-from hystdisc.io import Dataset, atomic_write_text, estimate_noise
-from hystdisc.models import FAMILIES
+from hystdisc.models.core import FAMILIES
 
 __all__ = [
     "FAMILY_COLORS",
@@ -320,7 +320,7 @@ def fit_residuals(disc, key: str | None = None) -> list[np.ndarray]:
     Returns
     -------
     list of ndarray
-        One residual per run (for :func:`hystdisc.plotting.plot_residual_spectrum`).
+        One residual per run (for :func:`hystdisc.plotting.core.plot_residual_spectrum`).
     """
     _check_fitted(disc)
     fd = _fit_data(disc)
@@ -334,7 +334,7 @@ def fit_residuals(disc, key: str | None = None) -> list[np.ndarray]:
 
 def _simulated_damper(fit, fd, runs: Sequence[int]) -> list[Any]:
     """Simulated theta, theta_dot and damper torque of release/forced runs (SimResults)."""
-    from hystdisc.simulation import simulate_mech
+    from hystdisc.simulation.core import simulate_mech
 
     nu = np.asarray(fit.nuisance)
     kw: dict[str, Any] = {}
@@ -384,7 +384,7 @@ def model_loops(
         Loop dicts (``t, theta, theta_dot, torque, current, label, style``) plus ``run``
         (index) and ``kind`` (``"data"`` or the fit key), data first for every run.
     """
-    from hystdisc.differentiation import differentiate
+    from hystdisc.discovery.differentiation import differentiate
 
     _check_fitted(disc)
     fd = _fit_data(disc)
@@ -574,7 +574,7 @@ class _Report:
             ["run", "current [A]", "samples", "fitted", "duration [s]", "fs [Hz]", f"{meas} range"],
             rows,
         )
-        from hystdisc.plotting import plot_runs
+        from hystdisc.plotting.core import plot_runs
 
         fig, axes = _new_figure(1, 1, 10, 3.6)
         shown = Dataset([ds.runs[k] for k in range(len(ds.runs))], ds.experiment, ds.source)
@@ -583,7 +583,7 @@ class _Report:
         self.figure(fig)
 
     def time_series(self) -> None:
-        from hystdisc.plotting import plot_fit
+        from hystdisc.plotting.core import plot_fit
 
         self.h2("time-series")
         start = {
@@ -627,7 +627,7 @@ class _Report:
         self.figure(fig)
 
     def loops(self) -> None:
-        from hystdisc.plotting import loops_figure
+        from hystdisc.plotting.core import loops_figure
 
         self.h2("loops")
         if self.fd.experiment == "driven":
@@ -674,7 +674,7 @@ class _Report:
         self.figure(fig)
 
     def families(self) -> None:
-        from hystdisc.plotting import plot_family_comparison
+        from hystdisc.plotting.core import plot_family_comparison
 
         d = self.res
         self.h2("families")
@@ -810,7 +810,7 @@ class _Report:
         self.table(header, rows, left=len(header))
 
     def selection(self) -> None:
-        from hystdisc.plotting import plot_inclusion, plot_selection_path
+        from hystdisc.plotting.core import plot_inclusion, plot_selection_path
 
         disc = self.disc
         self.h2("selection")
@@ -862,7 +862,7 @@ class _Report:
             )
 
     def closing(self) -> None:
-        from hystdisc.plotting import plot_residual_spectrum
+        from hystdisc.plotting.core import plot_residual_spectrum
 
         d, disc, fd = self.res, self.disc, self.fd
         self.h2("closing")
@@ -1007,7 +1007,7 @@ def _md_line(text: str) -> str:
 
 
 def _currents(cs) -> str:
-    from hystdisc.io import distinct_currents
+    from hystdisc.data.io import distinct_currents
 
     return ", ".join(f"{c:g}" for c in distinct_currents(cs))
 

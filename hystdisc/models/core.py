@@ -14,7 +14,7 @@ same compiled kernel.
 
 Examples
 --------
->>> from hystdisc.models import Model
+>>> from hystdisc.models.core import Model
 >>> m = Model("dahl", {"k_s": 158.0})
 >>> m.params["rho"]
 20.0

@@ -9,7 +9,7 @@ The torque of a study is the **damper** torque: the rig terms (the spring ``k_s 
 
 Examples
 --------
->>> from hystdisc.studies import parameter_study
+>>> from hystdisc.simulation.studies import parameter_study
 >>> study = parameter_study("dahl", "rho", [2, 15], frequency=1.0)
 >>> [s["label"] for s in study], len(study[0]["t"])
 (['rho = 2', 'rho = 15'], 2001)
@@ -25,8 +25,8 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from hystdisc.errors import HystdiscError
-from hystdisc.models import EFFECTS, RIG_PARAMS, Model, TermModel, get_family
-from hystdisc.simulation import simulate_driven
+from hystdisc.models.core import EFFECTS, RIG_PARAMS, Model, TermModel, get_family
+from hystdisc.simulation.core import simulate_driven
 
 __all__ = ["CURRENT_NAMES", "damper_terms", "loop", "parameter_study", "plot_study"]
 
@@ -220,7 +220,7 @@ def plot_study(
     """
     import matplotlib
 
-    from hystdisc.plotting import loops_figure
+    from hystdisc.plotting.core import loops_figure
 
     colors = matplotlib.colormaps[cmap](np.linspace(0.0, 0.9, max(len(study), 1)))
     loops = []

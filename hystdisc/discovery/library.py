@@ -30,7 +30,12 @@ from dataclasses import dataclass
 import numpy as np
 from pysindy.feature_library.base import BaseFeatureLibrary
 
-from hystdisc.models import HYSTERESIS_TERM_NAMES, TORQUE_TERM_NAMES, TORQUE_TERMS, Z_TORQUE_TERMS
+from hystdisc.models.core import (
+    HYSTERESIS_TERM_NAMES,
+    TORQUE_TERM_NAMES,
+    TORQUE_TERMS,
+    Z_TORQUE_TERMS,
+)
 
 #: Exponents searched by discovery (smaller n makes the seed form Dahl-like and the state
 #: non-Lipschitz at z = 0, which no fixed-step search should chase; fit Dahl instead).
@@ -55,7 +60,7 @@ class TorqueLibrary(BaseFeatureLibrary):
     Parameters
     ----------
     terms : sequence of str
-        Term names from :data:`hystdisc.models.TORQUE_TERM_NAMES`.
+        Term names from :data:`hystdisc.models.core.TORQUE_TERM_NAMES`.
     """
 
     def __init__(self, terms: Sequence[str] = DEFAULT_TORQUE_TERMS) -> None:

@@ -27,7 +27,7 @@ import numpy as np
 
 from hystdisc import __version__
 from hystdisc.errors import HystdiscError
-from hystdisc.models import FAMILIES, TermModel
+from hystdisc.models.core import FAMILIES, TermModel
 
 SIG_DIGITS = 10
 
@@ -88,7 +88,7 @@ class Results:
 
     def save(self, path: str | Path, force: bool = False) -> Path:
         """Write ``results.json`` atomically (refuses to overwrite without ``force``)."""
-        from hystdisc.io import atomic_write_text
+        from hystdisc.data.io import atomic_write_text
 
         return atomic_write_text(path, self.to_json(), force=force)
 
@@ -367,7 +367,7 @@ def _family_entry(name: str, fit, discovered_terms: dict) -> dict:
 
 def build_results(disc, dataset) -> Results:
     """Assemble the ``results.json`` contract from a fitted :class:`~hystdisc.Discovery`."""
-    from hystdisc.diagnostics import residual_summary
+    from hystdisc.closing.diagnostics import residual_summary
 
     fams = {n: _family_entry(n, f, disc.terms_) for n, f in disc.family_fits_.items()}
     sel = disc.family_fits_[disc.family_]

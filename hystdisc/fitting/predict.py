@@ -10,10 +10,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from hystdisc.differentiation import differentiate
-from hystdisc.io import Dataset, estimate_noise
-from hystdisc.models import TermModel
-from hystdisc.simulation import simulate_driven_runs, simulate_mech
+from hystdisc.data.io import Dataset, estimate_noise
+from hystdisc.discovery.differentiation import differentiate
+from hystdisc.models.core import TermModel
+from hystdisc.simulation.core import simulate_driven_runs, simulate_mech
 
 
 def predict_dataset(
@@ -23,8 +23,8 @@ def predict_dataset(
 
     Examples
     --------
-    >>> from hystdisc.models import Model
-    >>> from hystdisc.synth import generate
+    >>> from hystdisc.models.core import Model
+    >>> from hystdisc.simulation.synth import generate
     >>> data = generate(Model("dahl"), currents=(0.5,), duration=1.0, noise=0.0, seed=0)
     >>> pred = predict_dataset(Model("dahl").to_terms(), data)
     >>> bool(np.max(np.abs(pred[0] - data.runs[0].theta)) < 1e-6)

@@ -1,0 +1,1 @@
+"""Closing the loop: residual diagnosis against the effect catalogue, refits, whiteness."""

@@ -1,0 +1,1 @@
+"""Stage 1: numerical differentiation and sparse regression with a latent hysteretic state."""

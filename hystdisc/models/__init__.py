@@ -1,0 +1,1 @@
+"""Models: terms, hysteresis shapes, families, effects and state-space systems."""

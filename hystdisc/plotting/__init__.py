@@ -1,0 +1,1 @@
+"""Plotting functions: each takes ``ax=`` and returns its artists."""

@@ -1,0 +1,1 @@
+"""The self-contained HTML model-comparison report and its Markdown summary."""

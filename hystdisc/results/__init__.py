@@ -1,0 +1,1 @@
+"""Results: the typed, versioned record of a discovery (``results.json``)."""

@@ -1,0 +1,1 @@
+"""Simulation: compiled integrators for every model and experiment, and synthetic data."""
