@@ -49,7 +49,7 @@ from threadpoolctl import threadpool_limits
 from hystdisc.data.io import Dataset, atomic_write_text, load
 from hystdisc.discovery.stage1 import Discovery
 from hystdisc.fitting.output_error import FamilyParametrization, FitData, OutputErrorFitter
-from hystdisc.models.core import RIG_PARAMS
+from hystdisc.models import RIG_PARAMS
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "results"
@@ -176,7 +176,7 @@ def user_bounds(
 ) -> list[tuple[float, float]]:
     """Bounds a user would give: 0.1x..10x typical values, ``k_s`` 100..200, theta0 +- tol.
 
-    The typical values are the family's demo defaults (:class:`hystdisc.models.core.Param`);
+    The typical values are the family's demo defaults (:class:`hystdisc.models.Param`);
     bounds are clipped to the parameter's physical range.
     """
     specs = {p.name: p for p in (*par.family.params, *RIG_PARAMS)}

@@ -7,7 +7,7 @@ displacement ``y`` [m], 4 periods of a 8192-sample multisine at 750 Hz; see the 
    "current"), with the closing loop.
 2. **Map** the selected Bouc-Wen fit to the benchmark's parametrization
    ``m y'' + c y' + k y + z = u``, ``z' = alpha y' - beta (gamma |y'| |z|^(nu-1) z
-   + delta y' |z|^nu)`` (:meth:`hystdisc.models.core.BoucWenStd.force_form`) and show it beside the
+   + delta y' |z|^nu)`` (:meth:`hystdisc.models.BoucWenStd.force_form`) and show it beside the
    true values. Only ``beta*gamma`` and ``beta*delta`` are identifiable; the table also gives
    ``gamma``, ``delta`` with ``beta`` fixed at the benchmark's 1000.
 3. **Validate** on period 4 from its input alone: the model is simulated from rest over the
@@ -39,7 +39,7 @@ import numpy as np
 from hystdisc.cli.common import progress_printer
 from hystdisc.data.io import Dataset, Run, load
 from hystdisc.discovery.stage1 import Discovery
-from hystdisc.models.core import TermModel, get_family
+from hystdisc.models import TermModel, get_family
 from hystdisc.simulation.core import simulate_forced
 
 FS = 750.0

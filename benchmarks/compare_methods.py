@@ -62,7 +62,7 @@ from bench_discover import machine_description, swarm_fit, user_bounds  # noqa: 
 from hystdisc.data.io import Dataset, atomic_write_text, load  # noqa: E402
 from hystdisc.discovery.stage1 import Discovery  # noqa: E402
 from hystdisc.fitting.output_error import FamilyParametrization, FitData, OutputErrorFitter  # noqa: E402
-from hystdisc.models.core import Model, get_family  # noqa: E402
+from hystdisc.models import Model, get_family  # noqa: E402
 from hystdisc.simulation.synth import generate  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -45,7 +45,7 @@ from bench_discover import machine_description  # noqa: E402
 
 from hystdisc.data.io import atomic_write_bytes, atomic_write_text  # noqa: E402
 from hystdisc.discovery.stage1 import Discovery  # noqa: E402
-from hystdisc.models.core import Model  # noqa: E402
+from hystdisc.models import Model  # noqa: E402
 from hystdisc.simulation.synth import generate  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -14,7 +14,7 @@ from __future__ import annotations
 __version__ = "0.1.0"
 
 from hystdisc.errors import HystdiscError, HystdiscWarning  # noqa: E402
-from hystdisc.models.core import Model, TermModel  # noqa: E402
+from hystdisc.models import Model, TermModel  # noqa: E402
 
 
 def __getattr__(name: str):

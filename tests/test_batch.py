@@ -16,7 +16,7 @@ from hystdisc.cli import batch, build_parser, main
 from hystdisc.cli.batch import discover_many
 from hystdisc.cli.common import discovery_options
 from hystdisc.data.io import write_csv
-from hystdisc.models.core import Model
+from hystdisc.models import Model
 from hystdisc.simulation.synth import generate
 
 # small datasets: 3 currents, 3 s; a reduced family list keeps the test well under a minute

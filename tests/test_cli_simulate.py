@@ -13,7 +13,7 @@ import pytest
 from hystdisc.cli import main
 from hystdisc.data.io import read_csv
 from hystdisc.errors import HystdiscError
-from hystdisc.models.core import Model
+from hystdisc.models import Model
 from hystdisc.simulation.synth import generate, generate_from_scenario, load_scenario
 
 REPO = Path(__file__).resolve().parents[1]

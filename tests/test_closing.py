@@ -26,7 +26,7 @@ from hystdisc.discovery.library import FAMILY_SHAPE
 from hystdisc.discovery.stage1 import Discovery
 from hystdisc.fitting.output_error import FamilyParametrization, FitData
 from hystdisc.fitting.predict import predict_dataset
-from hystdisc.models.core import EFFECTS, Model
+from hystdisc.models import EFFECTS, Model
 from hystdisc.results.core import Results
 from hystdisc.simulation.synth import generate
 

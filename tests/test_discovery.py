@@ -15,7 +15,7 @@ import pytest
 from hystdisc import Discovery, Model
 from hystdisc.cli import main
 from hystdisc.data.io import load
-from hystdisc.models.core import FAMILIES
+from hystdisc.models import FAMILIES
 from hystdisc.results.core import Results
 from hystdisc.simulation.synth import generate, load_scenario
 

@@ -24,7 +24,7 @@ from hystdisc.cli import build_parser, main
 from hystdisc.data.io import Dataset, Run, write_csv
 from hystdisc.discovery.stage1 import Discovery
 from hystdisc.errors import HystdiscError, HystdiscWarning
-from hystdisc.models.core import Model
+from hystdisc.models import Model
 from hystdisc.simulation.synth import generate
 
 FAST = {"families": ["dahl", "bingham"], "heldout": False, "close_loop": False}

@@ -53,7 +53,7 @@ from hystdisc.data.io import (
     write_csv,
 )
 from hystdisc.errors import HystdiscError, HystdiscWarning
-from hystdisc.models.core import FAMILIES, Model, TermModel
+from hystdisc.models import FAMILIES, Model, TermModel
 from hystdisc.results.core import Results
 from hystdisc.simulation.synth import (
     SCENARIO_KEYS,

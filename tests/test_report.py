@@ -12,7 +12,7 @@ import pytest
 from hystdisc.cli import main
 from hystdisc.discovery.stage1 import Discovery
 from hystdisc.errors import HystdiscError
-from hystdisc.models.core import Model
+from hystdisc.models import Model
 from hystdisc.report.core import SECTIONS, model_loops, write_report
 from hystdisc.simulation.synth import generate, write_dataset
 

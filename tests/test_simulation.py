@@ -17,7 +17,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from hystdisc.errors import HystdiscError
-from hystdisc.models.core import (
+from hystdisc.models import (
     EFFECTS,
     FAMILIES,
     HYSTERESIS_TERM_NAMES,

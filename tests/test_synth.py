@@ -7,7 +7,7 @@ import pytest
 
 from hystdisc.data.io import read_csv
 from hystdisc.errors import HystdiscError
-from hystdisc.models.core import Model
+from hystdisc.models import Model
 from hystdisc.simulation.synth import (
     DEFAULT_INPUT,
     generate,

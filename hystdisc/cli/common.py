@@ -81,7 +81,7 @@ def progress_printer(quiet: bool) -> Callable[[str], None] | None:
 def add_discovery_options(p: argparse.ArgumentParser) -> None:
     """Options of the estimator shared by ``discover`` and ``report`` (plus the data options)."""
     from hystdisc.discovery.stage1 import ALL_FAMILIES
-    from hystdisc.models.core import FAMILIES
+    from hystdisc.models import FAMILIES
 
     p.add_argument(
         "--model", help=f"declare the family instead of selecting one: {', '.join(FAMILIES)}"

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from hystdisc.errors import HystdiscError
-from hystdisc.models.core import FAMILIES
+from hystdisc.models import FAMILIES
 from hystdisc.simulation.synth import (
     generate_from_scenario,
     load_scenario,

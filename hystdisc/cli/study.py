@@ -14,7 +14,7 @@ from pathlib import Path
 from hystdisc.cli.simulate import _float, _int, parse_assignments, parse_effect
 from hystdisc.data.io import atomic_write_bytes
 from hystdisc.errors import HystdiscError
-from hystdisc.models.core import FAMILIES
+from hystdisc.models import FAMILIES
 
 HELP = "plot a model's hysteresis loops while one parameter varies"
 FORMATS = (".png", ".pdf", ".svg")

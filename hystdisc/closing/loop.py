@@ -3,7 +3,7 @@
 DESIGN.md section 6, issue 4. After the output-error fit of the selected (or declared)
 family:
 
-1. **Candidates.** The effect catalogue (:data:`hystdisc.models.core.EFFECTS`) minus the effects
+1. **Candidates.** The effect catalogue (:data:`hystdisc.models.EFFECTS`) minus the effects
    whose torque terms the model already has (Bouc-Wen and LuGre carry ``i*theta_dot``,
    Bingham ``sign(theta_dot)``), the effects that need a hysteretic state the model lacks
    (``i^2*z`` in Bingham), the current effects the currents cannot identify (one current
@@ -58,7 +58,7 @@ import numpy as np
 
 from hystdisc.closing.diagnostics import WHITE_P, ljung_box_pooled, residual_spectrum, spectral_peak
 from hystdisc.fitting.output_error import FamilyParametrization, FitData, OEFit, OutputErrorFitter
-from hystdisc.models.core import EFFECTS, Z_TORQUE_TERMS, TermModel
+from hystdisc.models import EFFECTS, Z_TORQUE_TERMS, TermModel
 
 #: An effect is accepted only when its refit lowers BIC by more than this (the margin
 #: within which :mod:`hystdisc.discovery.stage1` calls two families equal fits), and refitted only
@@ -369,7 +369,7 @@ def _equation_evidence(
     eq, tm: TermModel, candidates: Sequence[str]
 ) -> dict[str, tuple[float, float]]:
     """Equation-error evidence of each candidate (see the module docstring)."""
-    from hystdisc.models.core import SIGN_EPS, TORQUE_TERMS
+    from hystdisc.models import SIGN_EPS, TORQUE_TERMS
     from hystdisc.simulation.core import integrate_z
 
     if tm.has_state:

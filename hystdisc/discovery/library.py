@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 from pysindy.feature_library.base import BaseFeatureLibrary
 
-from hystdisc.models.core import (
+from hystdisc.models import (
     HYSTERESIS_TERM_NAMES,
     TORQUE_TERM_NAMES,
     TORQUE_TERMS,
@@ -60,7 +60,7 @@ class TorqueLibrary(BaseFeatureLibrary):
     Parameters
     ----------
     terms : sequence of str
-        Term names from :data:`hystdisc.models.core.TORQUE_TERM_NAMES`.
+        Term names from :data:`hystdisc.models.TORQUE_TERM_NAMES`.
     """
 
     def __init__(self, terms: Sequence[str] = DEFAULT_TORQUE_TERMS) -> None:

@@ -15,7 +15,7 @@ held-out RMS.
 
 Examples
 --------
->>> from hystdisc.models.core import Model
+>>> from hystdisc.models import Model
 >>> from hystdisc.simulation.synth import generate
 >>> data = generate(Model("dahl"), currents=(0, 0.5, 1), duration=3, noise=1e-3, seed=1)
 >>> d = Discovery(families=["dahl", "bingham"], heldout=False).fit(data)
@@ -52,7 +52,7 @@ from hystdisc.fitting.output_error import (
     OutputErrorFitter,
     TermParametrization,
 )
-from hystdisc.models.core import (
+from hystdisc.models import (
     FAMILIES,
     HYSTERESIS_TERM_NAMES,
     TORQUE_TERMS,
@@ -153,7 +153,7 @@ class Design:
     The columns that do not depend on ``z`` (and the regression target) are evaluated once;
     :meth:`build` only writes the ``z`` columns, so the shape search of :func:`_varpro`
     costs one ``z`` integration and one small least-squares solve per evaluation. The
-    values are exactly those of the terms (:data:`hystdisc.models.core.TORQUE_TERMS`) evaluated
+    values are exactly those of the terms (:data:`hystdisc.models.TORQUE_TERMS`) evaluated
     on ``[theta, theta_dot, z, i]``, as pysindy's :class:`~hystdisc.discovery.library.TorqueLibrary`
     computes them.
 
@@ -432,7 +432,7 @@ def family_start(
 
     Examples
     --------
-    >>> from hystdisc.models.core import Model
+    >>> from hystdisc.models import Model
     >>> from hystdisc.simulation.synth import generate
     >>> data = generate(Model("dahl"), currents=(0, 1), duration=3, noise=1e-4, seed=1)
     >>> d = Discovery(); d.single_current_ = False

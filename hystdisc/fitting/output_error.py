@@ -20,7 +20,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from hystdisc.errors import HystdiscError
-from hystdisc.models.core import (
+from hystdisc.models import (
     EFFECTS,
     RIG_PARAMS,
     Family,
@@ -430,7 +430,7 @@ class TermParametrization(Parametrization):
         nt = len(self.torque_terms)
         ns = len(self.shape.shape_names)
         b, n = self.shape.vector(np.asarray(x[nt : nt + ns]))
-        from hystdisc.models.core import HYSTERESIS_TERM_NAMES
+        from hystdisc.models import HYSTERESIS_TERM_NAMES
 
         hyst = {k: float(v) for k, v in zip(HYSTERESIS_TERM_NAMES, b, strict=True) if v != 0.0}
         tm = TermModel(dict(zip(self.torque_terms, map(float, x[:nt]), strict=True)), hyst, n)

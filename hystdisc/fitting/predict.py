@@ -12,7 +12,7 @@ import numpy as np
 
 from hystdisc.data.io import Dataset, estimate_noise
 from hystdisc.discovery.differentiation import differentiate
-from hystdisc.models.core import TermModel
+from hystdisc.models import TermModel
 from hystdisc.simulation.core import simulate_driven_runs, simulate_mech
 
 
@@ -23,7 +23,7 @@ def predict_dataset(
 
     Examples
     --------
-    >>> from hystdisc.models.core import Model
+    >>> from hystdisc.models import Model
     >>> from hystdisc.simulation.synth import generate
     >>> data = generate(Model("dahl"), currents=(0.5,), duration=1.0, noise=0.0, seed=0)
     >>> pred = predict_dataset(Model("dahl").to_terms(), data)

@@ -1,1 +1,55 @@
-"""Models: terms, hysteresis shapes, families, effects and state-space systems."""
+"""Models: parameters, the term form, hysteresis families, effects and state-space systems.
+
+Families and effects are looked up through :mod:`hystdisc.registry`; :data:`FAMILIES`
+and :data:`EFFECTS` here are that registry's objects by name, in its order.
+"""
+
+from __future__ import annotations
+
+from hystdisc import registry
+from hystdisc.models.effects import Effect
+from hystdisc.models.families.base import Family
+from hystdisc.models.model import Model
+from hystdisc.models.params import BIG, RIG_PARAMS, Param, check_params
+from hystdisc.models.terms import (
+    HYSTERESIS_TERM_NAMES,
+    HYSTERESIS_TERMS,
+    SIGN_EPS,
+    TORQUE_TERM_NAMES,
+    TORQUE_TERMS,
+    Z_TORQUE_TERMS,
+    TermModel,
+    format_equation,
+    smooth_sign,
+)
+
+get_family = registry.get_family
+get_effect = registry.get_effect
+
+#: Family name -> family object, in the registry's order.
+FAMILIES: dict[str, Family] = {n: registry.get_family(n) for n in registry.family_names()}
+#: Effect name -> effect object, in the registry's order.
+EFFECTS: dict[str, Effect] = {n: registry.get_effect(n) for n in registry.effect_names()}
+
+__all__ = [
+    "BIG",
+    "EFFECTS",
+    "FAMILIES",
+    "HYSTERESIS_TERMS",
+    "HYSTERESIS_TERM_NAMES",
+    "RIG_PARAMS",
+    "SIGN_EPS",
+    "TORQUE_TERMS",
+    "TORQUE_TERM_NAMES",
+    "Z_TORQUE_TERMS",
+    "Effect",
+    "Family",
+    "Model",
+    "Param",
+    "TermModel",
+    "check_params",
+    "format_equation",
+    "get_effect",
+    "get_family",
+    "smooth_sign",
+]

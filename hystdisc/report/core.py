@@ -65,7 +65,7 @@ import numpy as np
 from hystdisc import __version__
 from hystdisc.data.io import Dataset, atomic_write_text, estimate_noise
 from hystdisc.errors import HystdiscError
-from hystdisc.models.core import FAMILIES
+from hystdisc.models import FAMILIES
 
 __all__ = [
     "FAMILY_COLORS",

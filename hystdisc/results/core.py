@@ -27,7 +27,7 @@ import numpy as np
 
 from hystdisc import __version__
 from hystdisc.errors import HystdiscError
-from hystdisc.models.core import FAMILIES, TermModel
+from hystdisc.models import FAMILIES, TermModel
 
 SIG_DIGITS = 10
 

@@ -22,7 +22,7 @@ Divergence (NaN, overflow) is detected and reported as a
 Examples
 --------
 >>> import numpy as np
->>> from hystdisc.models.core import Model
+>>> from hystdisc.models import Model
 >>> from hystdisc.simulation.core import simulate_release
 >>> t = np.arange(0, 2.0, 1e-3)
 >>> out = simulate_release(Model("dahl"), t, current=0.5, theta0=0.3)
@@ -42,7 +42,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from hystdisc.errors import HystdiscError
-from hystdisc.models.core import SIGN_EPS, Model, TermModel
+from hystdisc.models import SIGN_EPS, Model, TermModel
 
 # per-run base coefficients, after folding in the current
 #   0 theta, 1 theta_dot, 2 z, 3 |theta_dot| z, 4 sign(theta_dot), 5 theta_dot|theta_dot|,

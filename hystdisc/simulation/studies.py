@@ -25,7 +25,7 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from hystdisc.errors import HystdiscError
-from hystdisc.models.core import EFFECTS, RIG_PARAMS, Model, TermModel, get_family
+from hystdisc.models import EFFECTS, RIG_PARAMS, Model, TermModel, get_family
 from hystdisc.simulation.core import simulate_driven
 
 __all__ = ["CURRENT_NAMES", "damper_terms", "loop", "parameter_study", "plot_study"]

@@ -21,7 +21,7 @@ Scenarios are TOML files with the same settings as ``hystdisc simulate`` (see
 
 Examples
 --------
->>> from hystdisc.models.core import Model
+>>> from hystdisc.models import Model
 >>> from hystdisc.simulation.synth import generate
 >>> ds = generate(Model("dahl"), currents=(0.0, 1.0), duration=1.0, seed=1)
 >>> ds.names, ds.experiment, ds[0].n, float(ds[1].current)
@@ -44,7 +44,7 @@ import numpy as np
 
 from hystdisc.data.io import Dataset, Run, write_csv
 from hystdisc.errors import HystdiscError
-from hystdisc.models.core import Model, TermModel
+from hystdisc.models import Model, TermModel
 from hystdisc.simulation.core import simulate_driven_runs, simulate_mech
 
 try:  # Python >= 3.11
@@ -277,7 +277,7 @@ def _as_model(model: Model | TermModel | str) -> Model | TermModel:
     if isinstance(model, (Model, TermModel)):
         return model
     raise HystdiscError(
-        f"model {model!r} is not a Model; fix: pass hystdisc.models.core.Model('bouc-wen', ...) "
+        f"model {model!r} is not a Model; fix: pass hystdisc.models.Model('bouc-wen', ...) "
         "or a family name"
     )
 
@@ -633,7 +633,7 @@ def normalize_scenario(raw: Mapping[str, Any], source: str = "scenario") -> dict
 
 
 def scenario_model(scenario: Mapping[str, Any]) -> Model:
-    """The :class:`~hystdisc.models.core.Model` a scenario describes (demo defaults if unset)."""
+    """The :class:`~hystdisc.models.Model` a scenario describes (demo defaults if unset)."""
     if "model" not in scenario:
         raise HystdiscError(
             f'{scenario.get("path", "scenario")}: no model given; fix: add model = "bouc-wen" '

@@ -1,0 +1,1 @@
+"""Experiment types: release, driven and forced, as objects that say what is measured."""

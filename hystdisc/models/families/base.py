@@ -1,0 +1,41 @@
+"""What a family is: its parameters and its mapping to and from the term form."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+from hystdisc.models.params import Param
+from hystdisc.models.terms import TermModel
+
+
+class Family:
+    """One model family: its parameters and its mapping to and from the term form."""
+
+    name: str = ""
+    title: str = ""
+    params: tuple[Param, ...] = ()
+    normalization: str = ""
+    torque_terms: tuple[str, ...] = ()
+    hysteresis_terms: tuple[str, ...] = ()
+    #: Parameters that multiply the current (fixed at 0 when every run has one current).
+    current_params: tuple[str, ...] = ()
+
+    def param_names(self) -> list[str]:
+        """Names of the damper parameters (rig parameters excluded)."""
+        return [p.name for p in self.params]
+
+    def defaults(self) -> dict[str, float]:
+        """Demo defaults of the damper parameters."""
+        return {p.name: p.default for p in self.params}
+
+    def to_terms(self, p: Mapping[str, float]) -> TermModel:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def from_terms(self, tm: TermModel) -> dict[str, float]:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def equations(self) -> str:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def __repr__(self) -> str:
+        return f"<Family {self.name}: {', '.join(self.param_names())}>"

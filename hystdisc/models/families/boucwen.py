@@ -1,0 +1,172 @@
+"""Bouc-Wen, in the seed's printed form and in the standard form."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+
+from hystdisc.models.families.base import Family
+from hystdisc.models.params import BIG, Param
+from hystdisc.models.terms import TermModel
+
+
+class BoucWen(Family):
+    """Bouc-Wen in the seed's printed form: dz = -gamma|w| z|z|^n - beta w |z|^n + delta w."""
+
+    name = "bouc-wen"
+    title = "Bouc-Wen (seed form)"
+    params = (
+        Param("alpha_1", "N*m", 0.0, BIG, 0.5, "passive hysteretic torque"),
+        Param("alpha_2", "N*m/A", 0.0, BIG, 1.5, "current-dependent hysteretic torque"),
+        Param("c_1", "N*m*s/rad", 0.0, BIG, 0.5, "passive viscous damping"),
+        Param("c_2", "N*m*s/(rad*A)", 0.0, BIG, 0.6, "current-dependent viscous damping"),
+        Param("beta", "1/rad", -BIG, BIG, 10.0, "shape (theta_dot |z|^n term)"),
+        Param("gamma", "1/rad", -BIG, BIG, 10.0, "shape (|theta_dot| z |z|^n term)"),
+        Param("delta", "1/rad", 1e-12, BIG, 20.0, "initial slope of z against theta"),
+        Param("n", "-", 1e-4, 10.0, 1.0, "exponent"),
+    )
+    normalization = "z_sat = 1 (delta = beta + gamma)"
+    current_params = ("alpha_2", "c_2")
+    torque_terms = ("theta_dot", "i*theta_dot", "z", "i*z")
+    hysteresis_terms = ("theta_dot", "theta_dot*|z|^n", "|theta_dot|*z*|z|^n")
+    _gamma_term = "|theta_dot|*z*|z|^n"
+    #: Degree of z in the gamma term beyond |z|^n (seed form: z|z|^n, one more).
+    gamma_extra_degree = 1
+
+    def to_terms(self, p):
+        return TermModel(
+            {
+                "z": p["alpha_1"],
+                "i*z": p["alpha_2"],
+                "theta_dot": p["c_1"],
+                "i*theta_dot": p["c_2"],
+            },
+            {"theta_dot": p["delta"], "theta_dot*|z|^n": -p["beta"], self._gamma_term: -p["gamma"]},
+            n=p["n"],
+        )
+
+    def z_sat(self, delta: float, beta: float, gamma: float, n: float) -> float:
+        """Saturation value of z on a monotone loading branch (root of delta = beta s^n + gamma s^(n+1))."""
+        from scipy.optimize import brentq
+
+        def f(s):
+            return delta - beta * s**n - gamma * s ** (n + self.gamma_extra_degree)
+
+        hi = 1.0
+        try:
+            while f(hi) >= 0:
+                hi *= 2.0
+                if hi > 1e12:
+                    return float("inf")  # no saturation (e.g. beta + gamma <= 0)
+        except OverflowError:
+            return float("inf")
+        return float(brentq(f, 0.0, hi, xtol=1e-14, rtol=1e-12))
+
+    def from_terms(self, tm):
+        delta = tm.hysteresis.get("theta_dot", 0.0)
+        beta = -tm.hysteresis.get("theta_dot*|z|^n", 0.0)
+        gamma = -tm.hysteresis.get(self._gamma_term, 0.0)
+        n = tm.n
+        g = tm.torque.get
+        s = self.z_sat(delta, beta, gamma, n)
+        if not np.isfinite(s) or s <= 0:
+            s = 1.0
+        # z = s * zn ;  dzn = delta/s w - beta s^(n-1) w|zn|^n - gamma s^n |w| zn |zn|^n
+        return {
+            "alpha_1": g("z", 0.0) * s,
+            "alpha_2": g("i*z", 0.0) * s,
+            "c_1": g("theta_dot", 0.0),
+            "c_2": g("i*theta_dot", 0.0),
+            "beta": beta * s ** (n - 1.0),
+            "gamma": gamma * s**n,
+            "delta": delta / s,
+            "n": n,
+        }
+
+    def equations(self):
+        return (
+            "T = (alpha_1 + alpha_2*i)*z + (c_1 + c_2*i)*theta_dot\n"
+            "dz/dt = -gamma*|theta_dot|*z*|z|^n - beta*theta_dot*|z|^n + delta*theta_dot"
+        )
+
+
+class BoucWenStd(BoucWen):
+    """Standard Bouc-Wen: dz = delta w - beta w |z|^n - gamma |w| z |z|^(n-1)."""
+
+    name = "bouc-wen-std"
+    title = "Bouc-Wen (standard form)"
+    params = (
+        Param("alpha_1", "N*m", 0.0, BIG, 0.5, "passive hysteretic torque"),
+        Param("alpha_2", "N*m/A", 0.0, BIG, 1.5, "current-dependent hysteretic torque"),
+        Param("c_1", "N*m*s/rad", 0.0, BIG, 0.5, "passive viscous damping"),
+        Param("c_2", "N*m*s/(rad*A)", 0.0, BIG, 0.6, "current-dependent viscous damping"),
+        Param("beta", "1/rad", -BIG, BIG, 5.0, "shape (theta_dot |z|^n term)"),
+        Param("gamma", "1/rad", -BIG, BIG, 15.0, "shape (|theta_dot| z |z|^(n-1) term)"),
+        Param("delta", "1/rad", 1e-12, BIG, 20.0, "initial slope of z against theta"),
+        Param("n", "-", 1e-4, 10.0, 2.0, "exponent"),
+    )
+    hysteresis_terms = ("theta_dot", "theta_dot*|z|^n", "|theta_dot|*z*|z|^(n-1)")
+    _gamma_term = "|theta_dot|*z*|z|^(n-1)"
+    gamma_extra_degree = 0
+
+    def from_terms(self, tm):
+        delta = tm.hysteresis.get("theta_dot", 0.0)
+        beta = -tm.hysteresis.get("theta_dot*|z|^n", 0.0)
+        gamma = -tm.hysteresis.get(self._gamma_term, 0.0)
+        n = tm.n
+        g = tm.torque.get
+        s = self.z_sat(delta, beta, gamma, n)
+        if not np.isfinite(s) or s <= 0:
+            s = 1.0
+        # standard form: both shape terms scale as s^(n-1)... after z = s*zn:
+        # dzn = delta/s w - beta s^(n-1) w |zn|^n - gamma s^(n-1) |w| zn |zn|^(n-1)
+        return {
+            "alpha_1": g("z", 0.0) * s,
+            "alpha_2": g("i*z", 0.0) * s,
+            "c_1": g("theta_dot", 0.0),
+            "c_2": g("i*theta_dot", 0.0),
+            "beta": beta * s ** (n - 1.0),
+            "gamma": gamma * s ** (n - 1.0),
+            "delta": delta / s,
+            "n": n,
+        }
+
+    def equations(self):
+        return (
+            "T = (alpha_1 + alpha_2*i)*z + (c_1 + c_2*i)*theta_dot\n"
+            "dz/dt = delta*theta_dot - beta*theta_dot*|z|^n - gamma*|theta_dot|*z*|z|^(n-1)"
+        )
+
+    def force_form(self, p: Mapping[str, float], current: float = 0.0) -> dict[str, float]:
+        """The structural-dynamics form with z in force units (e.g. the hysteretic benchmark).
+
+        ``m y'' + c y' + k y + z = u``, ``z' = alpha y' - gamma_beta |y'| |z|^(nu-1) z
+        - delta_beta y' |z|^nu``: the benchmark's ``beta*gamma`` and ``beta*delta`` are the
+        identifiable products (its ``beta``, ``gamma``, ``delta`` one by one are not).
+        ``p`` holds the family parameters plus ``k_s`` and ``J`` (a forced fit).
+
+        Examples
+        --------
+        >>> fam = BoucWenStd()
+        >>> p = {"alpha_1": 1.0, "alpha_2": 0.0, "c_1": 10.0, "c_2": 0.0, "beta": -1100.0,
+        ...      "gamma": 800.0, "delta": 5e4, "n": 1.0, "k_s": 5e4, "J": 2.0}
+        >>> fam.force_form(p)
+        {'m': 2.0, 'c': 10.0, 'k': 50000.0, 'alpha': 50000.0, 'beta*gamma': 800.0, 'beta*delta': -1100.0, 'nu': 1.0}
+        """
+        a = p["alpha_1"] + current * p.get("alpha_2", 0.0)  # z_force = a * z
+        n = p["n"]
+        s = a ** (1.0 - n)
+        return {
+            "m": float(p.get("J", 1.0)),
+            "c": float(p["c_1"] + current * p.get("c_2", 0.0)),
+            "k": float(p.get("k_s", 0.0)),
+            "alpha": float(a * p["delta"]),
+            "beta*gamma": float(p["gamma"] * s),
+            "beta*delta": float(p["beta"] * s),
+            "nu": float(n),
+        }
+
+
+BOUC_WEN = BoucWen()
+BOUC_WEN_STD = BoucWenStd()

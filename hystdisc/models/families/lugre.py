@@ -1,0 +1,66 @@
+"""LuGre (seed eq. 13-14): Dahl's bristle state with damping through dz/dt."""
+
+from __future__ import annotations
+
+from hystdisc.models.families.base import Family
+from hystdisc.models.params import BIG, Param
+from hystdisc.models.terms import TermModel
+
+
+class LuGre(Family):
+    name = "lugre"
+    title = "LuGre"
+    params = (
+        Param("sigma_a", "N*m/rad", 0.0, BIG, 10.0, "passive stiffness of z"),
+        Param("sigma_0", "N*m/(rad*A)", 1e-9, BIG, 30.0, "current-dependent stiffness of z"),
+        Param("sigma_1", "N*m*s/rad", 0.0, BIG, 0.5, "damping of z (acts through dz/dt)"),
+        Param("sigma_2", "N*m*s/rad", 0.0, BIG, 0.5, "viscous damping"),
+        Param("sigma_b", "N*m*s/(rad*A)", 0.0, BIG, 0.6, "current-dependent viscous damping"),
+        Param("a_0", "A/(N*m)", 1e-12, BIG, 2.0 / 3.0, "rate constant (z_sat = 1/(sigma_0 a_0))"),
+    )
+    normalization = (
+        "seed scale (dz/dt = theta_dot - sigma_0 a_0 |theta_dot| z; z_sat = 1/(sigma_0 a_0))"
+    )
+    torque_terms = ("theta_dot", "i*theta_dot", "z", "i*z", "|theta_dot|*z")
+    hysteresis_terms = ("theta_dot", "|theta_dot|*z")
+    current_params = ("sigma_b",)
+
+    def to_terms(self, p):
+        r = p["sigma_0"] * p["a_0"]
+        return TermModel(
+            {
+                "z": p["sigma_a"],
+                "i*z": p["sigma_0"],
+                "theta_dot": p["sigma_1"] + p["sigma_2"],
+                "i*theta_dot": p["sigma_b"],
+                "|theta_dot|*z": -p["sigma_1"] * r,
+            },
+            {"theta_dot": 1.0, "|theta_dot|*z": -r},
+        )
+
+    def from_terms(self, tm):
+        # bring z to the seed's scale, where the theta_dot coefficient of dz/dt is 1
+        # z = s * z_seed with s = b1 gives dz_seed = theta_dot + b2 |theta_dot| z_seed
+        b1 = tm.hysteresis.get("theta_dot", 1.0) or 1.0
+        r = -tm.hysteresis.get("|theta_dot|*z", 0.0)
+        g = tm.torque.get
+        s = b1
+        sigma_0 = g("i*z", 0.0) * s
+        sigma_1 = -g("|theta_dot|*z", 0.0) * s / r if r != 0.0 else 0.0
+        return {
+            "sigma_a": g("z", 0.0) * s,
+            "sigma_0": sigma_0,
+            "sigma_1": sigma_1,
+            "sigma_2": g("theta_dot", 0.0) - sigma_1,
+            "sigma_b": g("i*theta_dot", 0.0),
+            "a_0": r / sigma_0 if sigma_0 != 0.0 else float("inf"),
+        }
+
+    def equations(self):
+        return (
+            "T = sigma_a*z + sigma_0*i*z + sigma_1*dz/dt + sigma_2*theta_dot + sigma_b*i*theta_dot\n"
+            "dz/dt = theta_dot - sigma_0*a_0*|theta_dot|*z"
+        )
+
+
+LUGRE = LuGre()

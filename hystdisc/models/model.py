@@ -1,0 +1,70 @@
+"""A family with parameter values, rig parameters and effects."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+from hystdisc.models.params import RIG_PARAMS, check_params
+from hystdisc.models.terms import TermModel
+from hystdisc.registry import get_effect, get_family
+
+
+class Model:
+    """A family with parameter values, rig parameters and optional effects.
+
+    Parameters
+    ----------
+    family : str
+        Family name (see :func:`get_family`).
+    params : dict, optional
+        Damper and rig parameters (``k_s``, ``J``); unset ones take the demo defaults.
+    effects : dict, optional
+        Effect name -> dict of its parameters (unset ones take defaults).
+
+    Examples
+    --------
+    >>> m = Model("bouc-wen", {"c_2": 0.0}, effects={"coulomb": {"f_c": 0.2}})
+    >>> m.to_terms().torque["sign(theta_dot)"]
+    0.2
+    >>> Model("dahl", {"rho": -1})
+    Traceback (most recent call last):
+    ...
+    hystdisc.errors.HystdiscError: dahl: parameter rho=-1 is outside its physical bounds [1e-09, 1e+09]; fix: give a value within them
+    """
+
+    def __init__(
+        self,
+        family: str,
+        params: Mapping[str, float] | None = None,
+        effects: Mapping[str, Mapping[str, float]] | None = None,
+    ) -> None:
+        self.family = get_family(family)
+        params = dict(params or {})
+        specs = self.family.params + RIG_PARAMS
+        self.params = check_params(self.family.name, specs, params)
+        self.effects: dict[str, dict[str, float]] = {}
+        for name, ep in (effects or {}).items():
+            eff = get_effect(name)
+            self.effects[eff.name] = check_params(f"effect {eff.name}", eff.params, ep or {})
+
+    @property
+    def k_s(self) -> float:
+        return self.params["k_s"]
+
+    def to_terms(self) -> TermModel:
+        """The generic term form of this model (spring, damper and effects)."""
+        tm = self.family.to_terms(self.params)
+        tm.torque["theta"] = tm.torque.get("theta", 0.0) + self.params["k_s"]
+        tm.J = self.params["J"]
+        for name, ep in self.effects.items():
+            for k, v in get_effect(name).to_torque(ep, self.params["k_s"]).items():
+                tm.torque[k] = tm.torque.get(k, 0.0) + v
+        return tm
+
+    def __repr__(self) -> str:
+        ps = ", ".join(f"{k}={v:g}" for k, v in self.params.items())
+        eff = "".join(
+            f" + {k}({', '.join(f'{pk}={pv:g}' for pk, pv in ep.items())})"
+            for k, ep in self.effects.items()
+        )
+        return f"Model({self.family.name}{eff}: {ps})"

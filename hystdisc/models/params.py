@@ -1,0 +1,60 @@
+"""Named parameters with units, admissible bounds and demo defaults."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from hystdisc.errors import HystdiscError
+
+
+@dataclass(frozen=True)
+class Param:
+    """A named parameter with unit, physical bounds and a demo default."""
+
+    name: str
+    unit: str
+    lower: float
+    upper: float
+    default: float
+    doc: str = ""
+
+
+#: Bound standing for 'unbounded' in parameter tables.
+BIG = 1e9
+
+RIG_PARAMS = (
+    Param("k_s", "N*m/rad per unit J", 0.0, BIG, 158.0, "rig spring stiffness"),
+    Param("J", "kg*m^2", 1e-12, BIG, 1.0, "inertia (forced experiments only)"),
+)
+
+
+def check_params(
+    owner: str, specs: tuple[Param, ...], given: Mapping[str, float]
+) -> dict[str, float]:
+    known = {p.name: p for p in specs}
+    for k in given:
+        if k not in known:
+            raise HystdiscError(
+                f"{owner}: unknown parameter '{k}'; fix: use one of {', '.join(known)}"
+            )
+    out = {}
+    for p in specs:
+        v = given.get(p.name, p.default)
+        try:
+            v = float(v)
+        except (TypeError, ValueError):
+            raise HystdiscError(
+                f"{owner}: parameter {p.name}={v!r} is not a number; fix: give a number"
+            ) from None
+        if not np.isfinite(v):
+            raise HystdiscError(f"{owner}: parameter {p.name} is {v}; fix: give a finite number")
+        if not (p.lower <= v <= p.upper):
+            raise HystdiscError(
+                f"{owner}: parameter {p.name}={v:g} is outside its physical bounds "
+                f"[{p.lower:g}, {p.upper:g}]; fix: give a value within them"
+            )
+        out[p.name] = v
+    return out

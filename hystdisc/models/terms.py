@@ -1,0 +1,180 @@
+"""The term form: the language stage 1 writes a discovered structure in.
+
+Every model of the seed's families (and a family plus effects) reduces to one generic
+form, a :class:`TermModel`: a damper torque that is a linear combination of named
+*torque terms* and a hysteretic state ``z`` whose rate is a linear combination of named
+*hysteresis terms*::
+
+    T  = sum_k a_k * torque_term_k(theta, theta_dot, z, i)
+    dz = sum_j b_j * hysteresis_term_j(theta_dot, z; n)
+
+The rig spring ``k_s`` is the coefficient of the ``theta`` torque term. The term library
+of the sparse regression, the compiled term simulator and the output-error fit of these
+models all work on this one form.
+
+Examples
+--------
+>>> from hystdisc.models import Model
+>>> m = Model("dahl", {"k_s": 158.0})
+>>> m.params["rho"]
+20.0
+>>> tm = m.to_terms()
+>>> tm.torque["z"], tm.hysteresis["|theta_dot|*z"]
+(0.5, -20.0)
+>>> print(m.family.equations())
+T = k_x*theta_dot + (k_wa + k_wb*i)*z
+dz/dt = rho*(theta_dot - |theta_dot|*z)
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from hystdisc.errors import HystdiscError
+
+#: Width of the smoothed sign function ``tanh(theta_dot / SIGN_EPS)`` (rad/s or m/s).
+SIGN_EPS = 1e-3
+
+
+def smooth_sign(v: np.ndarray | float, eps: float = SIGN_EPS) -> np.ndarray:
+    """Smoothed ``sign(v)``: ``tanh(v / eps)``, used for Coulomb-type terms."""
+    return np.tanh(np.asarray(v, dtype=float) / eps)
+
+
+def _pow_abs(z: np.ndarray, n: float) -> np.ndarray:
+    return np.abs(z) ** n
+
+
+# name -> f(theta, theta_dot, z, i); i is the run's coil current (scalar or array)
+TORQUE_TERMS: dict[str, Callable[..., np.ndarray]] = {
+    "theta": lambda th, w, z, i: th,
+    "theta_dot": lambda th, w, z, i: w,
+    "i*theta_dot": lambda th, w, z, i: i * w,
+    "z": lambda th, w, z, i: z,
+    "i*z": lambda th, w, z, i: i * z,
+    "|theta_dot|*z": lambda th, w, z, i: np.abs(w) * z,
+    "sign(theta_dot)": lambda th, w, z, i: smooth_sign(w),
+    "i*sign(theta_dot)": lambda th, w, z, i: i * smooth_sign(w),
+    "i^2*z": lambda th, w, z, i: i * i * z,
+    "theta_dot*|theta_dot|": lambda th, w, z, i: w * np.abs(w),
+    "theta^3": lambda th, w, z, i: th**3,
+    "1": lambda th, w, z, i: np.ones_like(np.asarray(th, dtype=float)),
+    "i^2*theta_dot": lambda th, w, z, i: i * i * w,
+}
+TORQUE_TERM_NAMES: tuple[str, ...] = tuple(TORQUE_TERMS)
+
+# name -> f(theta_dot, z, n)
+HYSTERESIS_TERMS: dict[str, Callable[..., np.ndarray]] = {
+    "theta_dot": lambda w, z, n: w,
+    "|theta_dot|*z": lambda w, z, n: np.abs(w) * z,
+    "theta_dot*|z|^n": lambda w, z, n: w * _pow_abs(z, n),
+    "|theta_dot|*z*|z|^n": lambda w, z, n: np.abs(w) * z * _pow_abs(z, n),
+    "|theta_dot|*z*|z|^(n-1)": lambda w, z, n: np.abs(w) * np.sign(z) * _pow_abs(z, n),
+}
+HYSTERESIS_TERM_NAMES: tuple[str, ...] = tuple(HYSTERESIS_TERMS)
+
+# Torque terms that depend on z (zero contribution when the model has no hysteresis).
+Z_TORQUE_TERMS = ("z", "i*z", "|theta_dot|*z", "i^2*z")
+
+
+@dataclass
+class TermModel:
+    """A model in generic term form (see module docstring).
+
+    Parameters
+    ----------
+    torque : dict
+        Torque term name -> coefficient (names from ``TORQUE_TERM_NAMES``).
+    hysteresis : dict
+        Hysteresis term name -> coefficient (names from ``HYSTERESIS_TERM_NAMES``).
+    n : float
+        Exponent used by the ``|z|^n`` hysteresis terms.
+    J : float
+        Inertia (mass); only used by ``forced`` experiments.
+    """
+
+    torque: dict[str, float] = field(default_factory=dict)
+    hysteresis: dict[str, float] = field(default_factory=dict)
+    n: float = 1.0
+    J: float = 1.0
+
+    def __post_init__(self) -> None:
+        for name in self.torque:
+            if name not in TORQUE_TERMS:
+                raise HystdiscError(
+                    f"unknown torque term '{name}'; fix: use one of {', '.join(TORQUE_TERM_NAMES)}"
+                )
+        for name in self.hysteresis:
+            if name not in HYSTERESIS_TERMS:
+                raise HystdiscError(
+                    f"unknown hysteresis term '{name}'; fix: use one of "
+                    f"{', '.join(HYSTERESIS_TERM_NAMES)}"
+                )
+        self.torque = {k: float(v) for k, v in self.torque.items()}
+        self.hysteresis = {k: float(v) for k, v in self.hysteresis.items()}
+        self.n = float(self.n)
+        self.J = float(self.J)
+
+    def torque_vector(self) -> np.ndarray:
+        """Coefficients in ``TORQUE_TERM_NAMES`` order (absent terms are 0)."""
+        return np.array([self.torque.get(k, 0.0) for k in TORQUE_TERM_NAMES])
+
+    def hysteresis_vector(self) -> np.ndarray:
+        """Coefficients in ``HYSTERESIS_TERM_NAMES`` order (absent terms are 0)."""
+        return np.array([self.hysteresis.get(k, 0.0) for k in HYSTERESIS_TERM_NAMES])
+
+    @property
+    def has_state(self) -> bool:
+        """True when the model carries a hysteretic state ``z``."""
+        return any(v != 0.0 for v in self.hysteresis.values())
+
+    def eval_torque(self, theta, theta_dot, z, i) -> np.ndarray:
+        """Damper (plus spring) torque for arrays of states at current(s) ``i``."""
+        out = np.zeros(np.broadcast(theta, theta_dot, z, i).shape)
+        for name, c in self.torque.items():
+            if c != 0.0:
+                out = out + c * TORQUE_TERMS[name](theta, theta_dot, z, i)
+        return out
+
+    def eval_rate(self, theta_dot, z) -> np.ndarray:
+        """Hysteretic rate ``dz/dt``."""
+        out = np.zeros(np.broadcast(theta_dot, z).shape)
+        for name, c in self.hysteresis.items():
+            if c != 0.0:
+                out = out + c * HYSTERESIS_TERMS[name](theta_dot, z, self.n)
+        return out
+
+    def __add__(self, other: TermModel) -> TermModel:
+        torque = dict(self.torque)
+        for k, v in other.torque.items():
+            torque[k] = torque.get(k, 0.0) + v
+        hyst = dict(self.hysteresis)
+        for k, v in other.hysteresis.items():
+            hyst[k] = hyst.get(k, 0.0) + v
+        return TermModel(torque, hyst, self.n, self.J)
+
+    def equations(self, precision: int = 4) -> str:
+        """pysindy-style two-line print of the model."""
+
+        def power(e: float) -> str:  # "*|z|^e", written plainly for e = 0 and 1
+            txt = f"{e:.{precision}g}"
+            return {"0": "", "1": "*|z|"}.get(txt, f"*|z|^{txt}")
+
+        rate = format_equation("dz/dt", self.hysteresis, precision)
+        rate = rate.replace("*|z|^(n-1)", power(self.n - 1.0)).replace("*|z|^n", power(self.n))
+        return format_equation("T", self.torque, precision) + "\n" + rate
+
+
+def format_equation(lhs: str, coefs: Mapping[str, float], precision: int = 4) -> str:
+    """Format ``lhs = c1 term1 + c2 term2`` like pysindy's ``print()``."""
+    parts = []
+    for name, c in coefs.items():
+        if c == 0.0:
+            continue
+        term = "" if name == "1" else f" {name}"
+        parts.append(f"{c:.{precision}g}{term}")
+    rhs = " + ".join(parts) if parts else "0"
+    return f"{lhs} = {rhs}".replace("+ -", "- ")

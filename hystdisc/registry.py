@@ -1,0 +1,119 @@
+"""The one registry of families, effects and experiment types.
+
+Every list of names in the package (the CLI's choices and help, the report's tables, the
+tests' parametrizations, the benchmarks) reads it from here. Entries are looked up by
+dotted path and imported on first use, so listing names costs no import of numpy or
+numba (``hystdisc --help`` stays fast).
+
+To add a family: write its module under ``hystdisc/models/families/`` and add one line
+to :data:`FAMILIES` (see ``doc/develop.rst``).
+
+Examples
+--------
+>>> from hystdisc import registry
+>>> registry.family_names()
+('bingham', 'dahl', 'lugre', 'bouc-wen', 'bouc-wen-std')
+>>> registry.get_family("Bouc_Wen").name
+'bouc-wen'
+>>> registry.get_experiment("release").output
+'theta'
+>>> registry.get_effect("nope")
+Traceback (most recent call last):
+...
+hystdisc.errors.HystdiscError: unknown effect 'nope'; fix: use one of current_viscous, current_saturation, coulomb, quadratic_damping, cubic_stiffness, offset
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+from hystdisc.errors import HystdiscError
+
+#: Family name -> ``module:attribute`` of its (instantiated) family object.
+FAMILIES: dict[str, str] = {
+    "bingham": "hystdisc.models.families.bingham:BINGHAM",
+    "dahl": "hystdisc.models.families.dahl:DAHL",
+    "lugre": "hystdisc.models.families.lugre:LUGRE",
+    "bouc-wen": "hystdisc.models.families.boucwen:BOUC_WEN",
+    "bouc-wen-std": "hystdisc.models.families.boucwen:BOUC_WEN_STD",
+}
+
+#: Effect name -> ``module:attribute`` of its effect object.
+EFFECTS: dict[str, str] = {
+    "current_viscous": "hystdisc.models.effects:CURRENT_VISCOUS",
+    "current_saturation": "hystdisc.models.effects:CURRENT_SATURATION",
+    "coulomb": "hystdisc.models.effects:COULOMB",
+    "quadratic_damping": "hystdisc.models.effects:QUADRATIC_DAMPING",
+    "cubic_stiffness": "hystdisc.models.effects:CUBIC_STIFFNESS",
+    "offset": "hystdisc.models.effects:OFFSET",
+}
+
+#: Experiment name -> ``module:attribute`` of its experiment object.
+EXPERIMENTS: dict[str, str] = {
+    "release": "hystdisc.experiments.release:RELEASE",
+    "driven": "hystdisc.experiments.driven:DRIVEN",
+    "forced": "hystdisc.experiments.forced:FORCED",
+}
+
+_ALIASES = {"boucwen": "bouc-wen", "bw": "bouc-wen", "boucwen-std": "bouc-wen-std"}
+
+
+def _resolve(path: str) -> Any:
+    module, _, attr = path.partition(":")
+    return getattr(importlib.import_module(module), attr)
+
+
+def family_names() -> tuple[str, ...]:
+    """Names of the registered families, in the order reports list them."""
+    return tuple(FAMILIES)
+
+
+def effect_names() -> tuple[str, ...]:
+    """Names of the catalogued effects."""
+    return tuple(EFFECTS)
+
+
+def experiment_names() -> tuple[str, ...]:
+    """Names of the experiment types."""
+    return tuple(EXPERIMENTS)
+
+
+def family_key(name: str) -> str:
+    """The registered name for ``name`` (case, ``_`` and common aliases folded).
+
+    Raises
+    ------
+    HystdiscError
+        When no family has that name.
+    """
+    key = str(name).strip().lower().replace("_", "-")
+    key = _ALIASES.get(key, key)
+    if key not in FAMILIES:
+        raise HystdiscError(f"unknown model '{name}'; fix: use one of {', '.join(FAMILIES)}")
+    return key
+
+
+def get_family(name: str) -> Any:
+    """The family object registered under ``name`` (see :func:`family_key`)."""
+    return _resolve(FAMILIES[family_key(name)])
+
+
+def get_effect(name: str) -> Any:
+    """The effect object registered under ``name``."""
+    key = str(name).strip().lower().replace("-", "_")
+    if key not in EFFECTS:
+        raise HystdiscError(f"unknown effect '{name}'; fix: use one of {', '.join(EFFECTS)}")
+    return _resolve(EFFECTS[key])
+
+
+def get_experiment(name: Any) -> Any:
+    """The experiment object for ``name`` (an experiment object is returned as it is)."""
+    if hasattr(name, "motion_imposed"):
+        return name
+    key = str(name).strip().lower()
+    if key not in EXPERIMENTS:
+        raise HystdiscError(
+            f"unknown experiment type '{name}'; fix: use one of {', '.join(EXPERIMENTS)}"
+        )
+    return _resolve(EXPERIMENTS[key])
