@@ -43,11 +43,13 @@ from scipy.interpolate import CubicSpline
 
 from hystdisc.errors import HystdiscError
 from hystdisc.models import SIGN_EPS, Model, TermModel
-
-# per-run base coefficients, after folding in the current
-#   0 theta, 1 theta_dot, 2 z, 3 |theta_dot| z, 4 sign(theta_dot), 5 theta_dot|theta_dot|,
-#   6 theta^3, 7 constant
-N_BASE = 8
+from hystdisc.models.compiled import (
+    N_BASE,
+    base_coefficients,
+    rate_stiffness,
+    term_rate,
+    term_torque,
+)
 
 #: Target of ``h * lambda`` per RK4 sub-step (smaller is more accurate).
 STEP_RATIO = 0.2
@@ -57,83 +59,19 @@ MIN_SUBSTEPS = 2
 MAX_SUBSTEPS = 500
 
 
-def base_coefficients(tm: TermModel, current: float) -> np.ndarray:
-    """Fold the current into the torque coefficients of a run (see ``N_BASE`` layout)."""
-    g = tm.torque.get
-    i = float(current)
-    c = np.zeros(N_BASE)
-    c[0] = g("theta", 0.0)
-    c[1] = g("theta_dot", 0.0) + i * g("i*theta_dot", 0.0) + i * i * g("i^2*theta_dot", 0.0)
-    c[2] = g("z", 0.0) + i * g("i*z", 0.0) + i * i * g("i^2*z", 0.0)
-    c[3] = g("|theta_dot|*z", 0.0)
-    c[4] = g("sign(theta_dot)", 0.0) + i * g("i*sign(theta_dot)", 0.0)
-    c[5] = g("theta_dot*|theta_dot|", 0.0)
-    c[6] = g("theta^3", 0.0)
-    c[7] = g("1", 0.0)
-    return c
-
-
 # ----------------------------------------------------------------------------- kernels
-
-
-@numba.njit(cache=True, inline="always")
-def _torque(c, th, w, z, eps):
-    aw = abs(w)
-    out = c[0] * th + c[1] * w + c[2] * z + c[3] * aw * z + c[5] * w * aw + c[7]
-    if c[4] != 0.0:  # tanh and the cube are the costly terms: skip them when absent
-        out += c[4] * math.tanh(w / eps)
-    if c[6] != 0.0:
-        out += c[6] * th * th * th
-    return out
-
-
-@numba.njit(cache=True, inline="always")
-def _rate(b, n, w, z):
-    aw = abs(w)
-    r = b[0] * w + b[1] * aw * z
-    if b[2] != 0.0 or b[3] != 0.0 or b[4] != 0.0:
-        az = abs(z)
-        if n == 1.0:
-            p = az
-        elif n == 2.0:
-            p = az * az
-        else:
-            p = az**n if az > 0.0 else 0.0
-        r += b[2] * w * p + b[3] * aw * z * p
-        if b[4] != 0.0:
-            if z > 0.0:
-                r += b[4] * aw * p
-            elif z < 0.0:
-                r -= b[4] * aw * p
-    return r
-
-
-@numba.njit(cache=True, inline="always")
-def _rate_stiffness(b, n, w, z):
-    """|d(dz/dt)/dz| and |d(dz/dt)/dw| (for the sub-step choice)."""
-    aw = abs(w)
-    az = abs(z)
-    dz = abs(b[1]) * aw
-    dw = abs(b[0]) + abs(b[1]) * az
-    if b[2] != 0.0 or b[3] != 0.0 or b[4] != 0.0:
-        azf = max(az, 1e-3)  # |z|^n is not Lipschitz at 0; do not chase it
-        pm1 = 1.0 if n == 1.0 else azf ** (n - 1.0)
-        p = pm1 * azf
-        dz += aw * (n * abs(b[2]) * pm1 + (n + 1.0) * abs(b[3]) * p + n * abs(b[4]) * pm1)
-        dw += abs(b[2]) * p + abs(b[3]) * az * p + abs(b[4]) * p
-    return dz, dw
 
 
 @numba.njit(cache=True)
 def _n_sub(c, b, n, J, th, w, z, h, eps, mech, u, ratio, min_sub, max_sub):
-    dgdz, dgdw = _rate_stiffness(b, n, w, z)
+    dgdz, dgdw = rate_stiffness(b, n, w, z)
     lam = dgdz  # already carries the |theta_dot| factor
     if mech:
         # the smoothed sign is stiff near w = 0: use the smallest |w| the interval may reach
         sech2 = 0.0
         acc = 0.0
         if c[4] != 0.0:
-            acc = abs((u - _torque(c, th, w, z, eps)) / J)
+            acc = abs((u - term_torque(c, th, w, z, eps)) / J)
             wmin = max(abs(w) - 1.5 * h * acc, 0.0)
             sech2 = 1.0 - math.tanh(wmin / eps) ** 2
         dtdw = abs(c[1] + c[3] * z * (1.0 if w >= 0 else -1.0)) + abs(c[4]) / eps * sech2
@@ -224,26 +162,26 @@ def _mech_batch(
                 u2 = _input(ua, ub, ma, mb, (s + 0.5) / m, hold)
                 u3 = _input(ua, ub, ma, mb, (s + 1.0) / m, hold)
                 k1t = w
-                k1w = (u1 - _torque(c, th, w, z, eps)) / J
-                k1z = _rate(b, n, w, z)
+                k1w = (u1 - term_torque(c, th, w, z, eps)) / J
+                k1z = term_rate(b, n, w, z)
                 tht = th + 0.5 * hs * k1t
                 wt = w + 0.5 * hs * k1w
                 zt = z + 0.5 * hs * k1z
                 k2t = wt
-                k2w = (u2 - _torque(c, tht, wt, zt, eps)) / J
-                k2z = _rate(b, n, wt, zt)
+                k2w = (u2 - term_torque(c, tht, wt, zt, eps)) / J
+                k2z = term_rate(b, n, wt, zt)
                 tht = th + 0.5 * hs * k2t
                 wt = w + 0.5 * hs * k2w
                 zt = z + 0.5 * hs * k2z
                 k3t = wt
-                k3w = (u2 - _torque(c, tht, wt, zt, eps)) / J
-                k3z = _rate(b, n, wt, zt)
+                k3w = (u2 - term_torque(c, tht, wt, zt, eps)) / J
+                k3z = term_rate(b, n, wt, zt)
                 tht = th + hs * k3t
                 wt = w + hs * k3w
                 zt = z + hs * k3z
                 k4t = wt
-                k4w = (u3 - _torque(c, tht, wt, zt, eps)) / J
-                k4z = _rate(b, n, wt, zt)
+                k4w = (u3 - term_torque(c, tht, wt, zt, eps)) / J
+                k4z = term_rate(b, n, wt, zt)
                 th += hs / 6.0 * (k1t + 2.0 * k2t + 2.0 * k3t + k4t)
                 w += hs / 6.0 * (k1w + 2.0 * k2w + 2.0 * k3w + k4w)
                 z += hs / 6.0 * (k1z + 2.0 * k2z + 2.0 * k3z + k4z)
@@ -266,10 +204,10 @@ def _z_rk4(b, n, z, wa, wb, fa, fc, h):
     w1 = wa + (wb - wa) * fa
     w2 = wa + (wb - wa) * (0.5 * (fa + fc))
     w3 = wa + (wb - wa) * fc
-    k1z = _rate(b, n, w1, z)
-    k2z = _rate(b, n, w2, z + 0.5 * hs * k1z)
-    k3z = _rate(b, n, w2, z + 0.5 * hs * k2z)
-    k4z = _rate(b, n, w3, z + hs * k3z)
+    k1z = term_rate(b, n, w1, z)
+    k2z = term_rate(b, n, w2, z + 0.5 * hs * k1z)
+    k3z = term_rate(b, n, w2, z + 0.5 * hs * k2z)
+    k4z = term_rate(b, n, w3, z + hs * k3z)
     return z + hs / 6.0 * (k1z + 2.0 * k2z + 2.0 * k3z + k4z)
 
 
@@ -323,7 +261,7 @@ def _driven_batch(
         k1 = offsets[r + 1]
         z = z0[r]
         z_out[k0] = z
-        tq_out[k0] = _torque(c, th_in[k0], w_in[k0], z, eps)
+        tq_out[k0] = term_torque(c, th_in[k0], w_in[k0], z, eps)
         status[r] = 0
         work[r] = 0
         for k in range(k0, k1 - 1):
@@ -341,7 +279,7 @@ def _driven_batch(
             else:
                 z = _z_segment(b, n, z, wa, wb, 0.0, 1.0, h, m)
             z_out[k + 1] = z
-            tq_out[k + 1] = _torque(c, th_in[k + 1], w_in[k + 1], z, eps)
+            tq_out[k + 1] = term_torque(c, th_in[k + 1], w_in[k + 1], z, eps)
             if not abs(z) < 1e12:
                 status[r] = 1
                 for kk in range(k + 1, k1):
@@ -358,7 +296,7 @@ def _torque_series(coef, rows, offsets, th_in, w_in, z, eps, out):
         e = rows[j]
         c = coef[e]
         for k in range(offsets[e], offsets[e + 1]):
-            out[k] = _torque(c, th_in[k], w_in[k], z[k], eps)
+            out[k] = term_torque(c, th_in[k], w_in[k], z[k], eps)
 
 
 # ----------------------------------------------------------------------------- python API

@@ -1,0 +1,100 @@
+"""The term form, compiled: torque and hysteretic rate of a term model as numba functions.
+
+These are the rate and output equations of every model written in the term form (the
+seed's families, a family plus effects, a discovered structure). The simulator's batch
+kernels, stage 1's z integration, the output-error fit and every state-space system built
+on the term form (:mod:`hystdisc.models.system`) call these same functions.
+
+A run's coefficients are packed once per run with the current folded in
+(:func:`base_coefficients`, layout :data:`N_BASE`) and the hysteresis side in
+``TermModel.hysteresis_vector()`` order.
+
+Examples
+--------
+>>> import numpy as np
+>>> from hystdisc.models import Model
+>>> tm = Model("dahl").to_terms()
+>>> c = base_coefficients(tm, current=0.5)
+>>> round(float(term_torque(c, 0.1, 2.0, 0.5, 1e-3)), 6)  # k_s*0.1 + k_x*2 + (k_wa + k_wb*0.5)*0.5
+18.025
+>>> float(term_rate(tm.hysteresis_vector(), tm.n, 2.0, 0.5))  # rho*(w - |w| z)
+20.0
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from hystdisc.models.terms import TermModel
+
+# per-run base coefficients, after folding in the current
+#   0 theta, 1 theta_dot, 2 z, 3 |theta_dot| z, 4 sign(theta_dot), 5 theta_dot|theta_dot|,
+#   6 theta^3, 7 constant
+N_BASE = 8
+
+
+def base_coefficients(tm: TermModel, current: float) -> np.ndarray:
+    """Fold the current into the torque coefficients of a run (see ``N_BASE`` layout)."""
+    g = tm.torque.get
+    i = float(current)
+    c = np.zeros(N_BASE)
+    c[0] = g("theta", 0.0)
+    c[1] = g("theta_dot", 0.0) + i * g("i*theta_dot", 0.0) + i * i * g("i^2*theta_dot", 0.0)
+    c[2] = g("z", 0.0) + i * g("i*z", 0.0) + i * i * g("i^2*z", 0.0)
+    c[3] = g("|theta_dot|*z", 0.0)
+    c[4] = g("sign(theta_dot)", 0.0) + i * g("i*sign(theta_dot)", 0.0)
+    c[5] = g("theta_dot*|theta_dot|", 0.0)
+    c[6] = g("theta^3", 0.0)
+    c[7] = g("1", 0.0)
+    return c
+
+
+@numba.njit(cache=True, inline="always")
+def term_torque(c, th, w, z, eps):
+    aw = abs(w)
+    out = c[0] * th + c[1] * w + c[2] * z + c[3] * aw * z + c[5] * w * aw + c[7]
+    if c[4] != 0.0:  # tanh and the cube are the costly terms: skip them when absent
+        out += c[4] * math.tanh(w / eps)
+    if c[6] != 0.0:
+        out += c[6] * th * th * th
+    return out
+
+
+@numba.njit(cache=True, inline="always")
+def term_rate(b, n, w, z):
+    aw = abs(w)
+    r = b[0] * w + b[1] * aw * z
+    if b[2] != 0.0 or b[3] != 0.0 or b[4] != 0.0:
+        az = abs(z)
+        if n == 1.0:
+            p = az
+        elif n == 2.0:
+            p = az * az
+        else:
+            p = az**n if az > 0.0 else 0.0
+        r += b[2] * w * p + b[3] * aw * z * p
+        if b[4] != 0.0:
+            if z > 0.0:
+                r += b[4] * aw * p
+            elif z < 0.0:
+                r -= b[4] * aw * p
+    return r
+
+
+@numba.njit(cache=True, inline="always")
+def rate_stiffness(b, n, w, z):
+    """|d(dz/dt)/dz| and |d(dz/dt)/dw| (for the sub-step choice)."""
+    aw = abs(w)
+    az = abs(z)
+    dz = abs(b[1]) * aw
+    dw = abs(b[0]) + abs(b[1]) * az
+    if b[2] != 0.0 or b[3] != 0.0 or b[4] != 0.0:
+        azf = max(az, 1e-3)  # |z|^n is not Lipschitz at 0; do not chase it
+        pm1 = 1.0 if n == 1.0 else azf ** (n - 1.0)
+        p = pm1 * azf
+        dz += aw * (n * abs(b[2]) * pm1 + (n + 1.0) * abs(b[3]) * p + n * abs(b[4]) * pm1)
+        dw += abs(b[2]) * p + abs(b[3]) * az * p + abs(b[4]) * p
+    return dz, dw

@@ -1,0 +1,189 @@
+"""Models as small state-space systems: named states, parameters, a rate and an output.
+
+A :class:`StateSpaceModel` is what the simulator integrates, whatever the physics::
+
+    dx/dt = f(x, u, p)        (the compiled ``rate(x, u, p, dx)``)
+    y     = g(x, u, p)        (the compiled ``output(x, u, p)``)
+
+``x`` holds the named :attr:`~StateSpaceModel.states`, ``u`` the exogenous signals named
+by :attr:`~StateSpaceModel.inputs` at the current time (an input force, an imposed
+motion), and ``p`` one run's packed parameter vector, built by
+:meth:`~StateSpaceModel.run_parameters` from named parameter values and the run's coil
+current (the current law is folded in once per run). ``rate`` and ``output`` are numba
+functions compiled once per model class; :func:`hystdisc.simulation.simulate_system`
+integrates any model with one compiled integrator.
+
+The term form (:mod:`hystdisc.models.terms`) is one such system, :class:`TermSystem`:
+the states of the rig and the hysteretic state of the damper, with the rate and output
+equations of :mod:`hystdisc.models.compiled`. A model with more states (an internal
+degree of freedom, a compliant wheel, a filter) is a subclass with its own compiled
+functions, and nothing else in the package needs to know about it: see
+:mod:`hystdisc.models.wheel`.
+
+Examples
+--------
+>>> from hystdisc.models import Model
+>>> sys = TermSystem(Model("dahl").to_terms(), "release")
+>>> sys.states, sys.inputs, sys.output
+(('theta', 'theta_dot', 'z'), (), 'theta')
+>>> sys.run_parameters({}, current=1.0)[:3].tolist()  # k_s, k_x, k_wa + k_wb * 1
+[158.0, 0.8, 2.0]
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numba
+import numpy as np
+
+from hystdisc.models.compiled import N_BASE, base_coefficients, term_rate, term_torque
+from hystdisc.models.params import Param, check_params
+from hystdisc.models.terms import SIGN_EPS, TermModel
+from hystdisc.registry import get_experiment
+
+
+class StateSpaceModel:
+    """Base of every model the simulator integrates (see the module docstring).
+
+    Subclasses set the class attributes and provide the compiled :attr:`rate` and
+    :attr:`output` functions; the base owns the common work (named parameters checked
+    against their admissible bounds, initial states, printing).
+
+    Attributes
+    ----------
+    name : str
+        Short name of the model.
+    states : tuple of str
+        Names of the state variables, in the order of ``x``.
+    inputs : tuple of str
+        Names of the exogenous signals, in the order of ``u`` (may be empty).
+    output : str
+        Name of the output ``y`` (the measured signal).
+    params : tuple of Param
+        Named parameters with units and admissible bounds.
+    rate : numba function
+        ``rate(x, u, p, dx)`` writes ``dx/dt`` into ``dx``.
+    observe : numba function
+        ``observe(x, u, p)`` returns the output.
+    """
+
+    name: str = ""
+    states: tuple[str, ...] = ()
+    inputs: tuple[str, ...] = ()
+    output: str = ""
+    params: tuple[Param, ...] = ()
+    rate = None
+    observe = None
+
+    def check(self, values: Mapping[str, float]) -> dict[str, float]:
+        """Every parameter's value (defaults for the unset ones), checked against its bounds.
+
+        Raises
+        ------
+        HystdiscError
+            For an unknown name, a non-finite value or one outside its admissible bounds.
+        """
+        return check_params(self.name, self.params, values)
+
+    def run_parameters(self, values: Mapping[str, float], current: float) -> np.ndarray:
+        """One run's packed parameter vector ``p`` (subclasses fold the current in)."""
+        v = self.check(values)
+        return np.array([v[p.name] for p in self.params], dtype=float)
+
+    def initial_state(self, **given: float) -> np.ndarray:
+        """A state vector: zeros except the named states given.
+
+        Examples
+        --------
+        >>> from hystdisc.models import Model
+        >>> TermSystem(Model("dahl").to_terms(), "release").initial_state(theta=0.3).tolist()
+        [0.3, 0.0, 0.0]
+        """
+        x = np.zeros(len(self.states))
+        for k, v in given.items():
+            if k not in self.states:
+                raise ValueError(f"{self.name}: no state '{k}'; states are {self.states}")
+            x[self.states.index(k)] = float(v)
+        return x
+
+    def equations(self) -> str:  # pragma: no cover - documented by subclasses
+        """The model's equations, one per line."""
+        return ""
+
+    def __repr__(self) -> str:
+        return f"<{type(self).__name__} {self.name}: states {', '.join(self.states)}>"
+
+
+# ----------------------------------------------------------------------------- term form
+# p layout: base coefficients (N_BASE, current folded in), hysteresis (5), n, J, eps
+_B0 = N_BASE
+_N = N_BASE + 5
+_J = _N + 1
+_EPS = _J + 1
+
+
+@numba.njit(cache=True, nogil=True)
+def _mech_rate(x, u, p, dx):
+    """Release/forced rig: ``J theta'' = u - T``, ``z' = g(theta', z)``."""
+    th, w, z = x[0], x[1], x[2]
+    uu = u[0] if u.shape[0] > 0 else 0.0
+    dx[0] = w
+    dx[1] = (uu - term_torque(p[:N_BASE], th, w, z, p[_EPS])) / p[_J]
+    dx[2] = term_rate(p[_B0:_N], p[_N], w, z)
+
+
+@numba.njit(cache=True, nogil=True)
+def _mech_output(x, u, p):
+    return x[0]
+
+
+@numba.njit(cache=True, nogil=True)
+def _driven_rate(x, u, p, dx):
+    """Imposed motion ``u = (theta, theta_dot)``: only ``z`` is integrated."""
+    dx[0] = term_rate(p[_B0:_N], p[_N], u[1], x[0])
+
+
+@numba.njit(cache=True, nogil=True)
+def _driven_output(x, u, p):
+    return term_torque(p[:N_BASE], u[0], u[1], x[0], p[_EPS])
+
+
+class TermSystem(StateSpaceModel):
+    """A model in term form as a state-space system, for one experiment type.
+
+    Release and forced: states ``theta, theta_dot, z``, output ``theta`` (a forced run has
+    the input ``u``). Driven: the motion is imposed (inputs ``theta, theta_dot``), the
+    state is ``z`` and the output the torque.
+
+    Parameters
+    ----------
+    terms : TermModel
+        The model (a family's ``to_terms()``, a discovered structure, ...).
+    experiment : str or Experiment
+        ``release``, ``driven`` or ``forced``.
+    """
+
+    def __init__(self, terms: TermModel, experiment: str = "release") -> None:
+        self.terms = terms
+        self.experiment = get_experiment(experiment)
+        self.name = f"term model ({self.experiment.name})"
+        if self.experiment.motion_imposed:
+            self.states, self.inputs, self.output = ("z",), ("theta", "theta_dot"), "torque"
+            self.rate, self.observe = _driven_rate, _driven_output
+        else:
+            self.states, self.output = ("theta", "theta_dot", "z"), "theta"
+            self.inputs = ("u",) if self.experiment.has_input else ()
+            self.rate, self.observe = _mech_rate, _mech_output
+
+    def run_parameters(self, values: Mapping[str, float], current: float) -> np.ndarray:
+        """The term coefficients with ``current`` folded in (``values`` is not used: a
+        term model carries its coefficients)."""
+        tm = self.terms
+        J = tm.J if self.experiment.inertia_identifiable else 1.0
+        return np.concatenate(
+            [base_coefficients(tm, current), tm.hysteresis_vector(), [tm.n, J, SIGN_EPS]]
+        )
+
+    def equations(self) -> str:
+        return self.terms.equations()
