@@ -27,7 +27,7 @@ from scipy.integrate import solve_ivp
 
 from hystdisc.data.io import atomic_write_text
 from hystdisc.models import Model
-from hystdisc.simulation.core import simulate_mech
+from hystdisc.simulation import simulate_mech
 
 CURRENTS = [0.0, 0.25, 0.5, 0.75, 1.0]
 THETA0 = 0.3

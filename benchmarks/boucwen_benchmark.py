@@ -40,7 +40,7 @@ from hystdisc.cli.common import progress_printer
 from hystdisc.data.io import Dataset, Run, load
 from hystdisc.discovery.stage1 import Discovery
 from hystdisc.models import TermModel, get_family
-from hystdisc.simulation.core import simulate_forced
+from hystdisc.simulation import simulate_forced
 
 FS = 750.0
 PERIOD = 8192

@@ -16,7 +16,7 @@ from hystdisc.errors import HystdiscError
 from hystdisc.models import FAMILIES, Model, TermModel
 from hystdisc.models.system import TermSystem
 from hystdisc.models.wheel import BeamOnCompliantWheel
-from hystdisc.simulation.core import simulate_driven, simulate_forced, simulate_release
+from hystdisc.simulation import simulate_driven, simulate_forced, simulate_release
 from hystdisc.simulation.ode import simulate_system
 
 T = np.arange(0.0, 3.0, 1e-3)

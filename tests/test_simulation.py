@@ -27,7 +27,7 @@ from hystdisc.models import (
     Model,
     TermModel,
 )
-from hystdisc.simulation.core import simulate_driven_runs, simulate_mech, simulate_release
+from hystdisc.simulation import simulate_driven_runs, simulate_mech, simulate_release
 from hystdisc.simulation.synth import generate, make_input
 
 FAMILY_NAMES = ("bingham", "dahl", "lugre", "bouc-wen", "bouc-wen-std")

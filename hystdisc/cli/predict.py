@@ -16,7 +16,7 @@ from hystdisc.data.io import atomic_write_text
 from hystdisc.errors import HystdiscError
 from hystdisc.fitting.predict import predict_dataset
 from hystdisc.results.core import Results
-from hystdisc.simulation.core import HOLDS
+from hystdisc.simulation import HOLDS
 
 
 def add_parser(sub) -> argparse.ArgumentParser:

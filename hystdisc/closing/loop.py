@@ -370,7 +370,7 @@ def _equation_evidence(
 ) -> dict[str, tuple[float, float]]:
     """Equation-error evidence of each candidate (see the module docstring)."""
     from hystdisc.models import SIGN_EPS, TORQUE_TERMS
-    from hystdisc.simulation.core import integrate_z
+    from hystdisc.simulation import integrate_z
 
     if tm.has_state:
         z = integrate_z(tm.hysteresis_vector(), tm.n, eq.t, eq.theta_dot, SIGN_EPS)

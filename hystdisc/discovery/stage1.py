@@ -55,13 +55,14 @@ from hystdisc.fitting.output_error import (
 from hystdisc.models import (
     FAMILIES,
     HYSTERESIS_TERM_NAMES,
+    SIGN_EPS,
     TORQUE_TERMS,
     Z_TORQUE_TERMS,
     TermModel,
     format_equation,
     get_family,
 )
-from hystdisc.simulation.core import SIGN_EPS, concat_runs, integrate_z_flat
+from hystdisc.simulation import concat_runs, integrate_z_flat
 
 ALL_FAMILIES = ("bingham", "dahl", "lugre", "bouc-wen", "bouc-wen-std")
 #: Default upper limit of the threads of one discovery.

@@ -28,13 +28,8 @@ from hystdisc.models import (
     TermModel,
     get_family,
 )
-from hystdisc.simulation.core import (
-    N_BASE,
-    base_coefficients,
-    driven_shared,
-    input_slopes,
-    mech_batch,
-)
+from hystdisc.models.compiled import N_BASE, base_coefficients
+from hystdisc.simulation import driven_shared, input_slopes, mech_batch
 
 Z95 = 1.959963984540054
 #: Sub-step ratio used while fitting (errors ~1e-6 of the signal, far below any noise).
@@ -215,7 +210,7 @@ def simulate_entries(
 
     A diverged entry is returned with its non-finite samples replaced by 1e6 (a large,
     finite residual the optimizer backs away from); ``status_out`` receives the flags and
-    ``work_out`` the integration work of each entry (see :func:`~hystdisc.simulation.core.mech_batch`).
+    ``work_out`` the integration work of each entry (see :func:`~hystdisc.simulation.mech_batch`).
     """
     ne = len(runs)
     steps = data.run_steps()

@@ -13,7 +13,7 @@ import numpy as np
 from hystdisc.data.io import Dataset, estimate_noise
 from hystdisc.discovery.differentiation import differentiate
 from hystdisc.models import TermModel
-from hystdisc.simulation.core import simulate_driven_runs, simulate_mech
+from hystdisc.simulation import simulate_driven_runs, simulate_mech
 
 
 def predict_dataset(

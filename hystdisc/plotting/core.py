@@ -211,7 +211,7 @@ def plot_runs(
         The runs; ``theta`` is drawn (``torque`` for driven datasets).
     predictions : sequence or dict, optional
         One simulated signal per run (arrays, or objects with a ``theta``/``torque``
-        attribute such as :class:`~hystdisc.simulation.core.SimResult`), in run order or keyed
+        attribute such as :class:`~hystdisc.simulation.SimResult`), in run order or keyed
         by run name. Drawn dashed in the colour of the measurement.
     ax : Axes or sequence of Axes, optional
         A single Axes overlays all runs; a sequence gives one Axes per run; by default a

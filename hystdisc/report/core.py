@@ -334,7 +334,7 @@ def fit_residuals(disc, key: str | None = None) -> list[np.ndarray]:
 
 def _simulated_damper(fit, fd, runs: Sequence[int]) -> list[Any]:
     """Simulated theta, theta_dot and damper torque of release/forced runs (SimResults)."""
-    from hystdisc.simulation.core import simulate_mech
+    from hystdisc.simulation import simulate_mech
 
     nu = np.asarray(fit.nuisance)
     kw: dict[str, Any] = {}

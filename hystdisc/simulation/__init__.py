@@ -1,1 +1,52 @@
-"""Simulation: compiled integrators for every model and experiment, and synthetic data."""
+"""Simulation: compiled integrators for every model and experiment, and synthetic data.
+
+- :mod:`~hystdisc.simulation.runs`: simulate runs of a family, a family with effects or a
+  discovered structure (release, forced, driven), on the fixed-step term kernels
+  (:mod:`~hystdisc.simulation.kernels`, batched by :mod:`~hystdisc.simulation.batch`);
+- :mod:`~hystdisc.simulation.ode`: any state-space model, with one error-controlled
+  integrator;
+- :mod:`~hystdisc.simulation.synth`: synthetic datasets (``hystdisc simulate``);
+- :mod:`~hystdisc.simulation.studies`: the seed's parameter studies.
+"""
+
+from hystdisc.simulation.batch import (
+    concat_runs,
+    driven_batch,
+    driven_shared,
+    input_slopes,
+    integrate_z,
+    integrate_z_flat,
+    mech_batch,
+)
+from hystdisc.simulation.kernels import HOLDS, MAX_SUBSTEPS, MIN_SUBSTEPS, STEP_RATIO
+from hystdisc.simulation.ode import SystemResult, simulate_system
+from hystdisc.simulation.runs import (
+    SimResult,
+    simulate_driven,
+    simulate_driven_runs,
+    simulate_forced,
+    simulate_mech,
+    simulate_release,
+)
+
+__all__ = [
+    "HOLDS",
+    "MAX_SUBSTEPS",
+    "MIN_SUBSTEPS",
+    "STEP_RATIO",
+    "SimResult",
+    "SystemResult",
+    "concat_runs",
+    "driven_batch",
+    "driven_shared",
+    "input_slopes",
+    "integrate_z",
+    "integrate_z_flat",
+    "mech_batch",
+    "simulate_driven",
+    "simulate_driven_runs",
+    "simulate_forced",
+    "simulate_mech",
+    "simulate_release",
+    "simulate_system",
+]

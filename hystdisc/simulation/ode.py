@@ -7,7 +7,7 @@ inputs are linear between samples, and a step that crosses a kink of the rate (a
 velocity reversal, ``|z|^n`` at zero) is rejected and retried smaller, so the error stays
 within the tolerances there too. numba compiles the integrator once per model class.
 
-The seed's families have their own fixed-step kernels (:mod:`hystdisc.simulation.core`),
+The seed's families have their own fixed-step kernels (:mod:`hystdisc.simulation.kernels`),
 tuned for the many short simulations of a fit; both integrate the same compiled rate
 equations, and the tests hold them to each other.
 

@@ -26,7 +26,7 @@ from matplotlib.figure import Figure
 
 from hystdisc.errors import HystdiscError
 from hystdisc.models import EFFECTS, RIG_PARAMS, Model, TermModel, get_family
-from hystdisc.simulation.core import simulate_driven
+from hystdisc.simulation import simulate_driven
 
 __all__ = ["CURRENT_NAMES", "damper_terms", "loop", "parameter_study", "plot_study"]
 

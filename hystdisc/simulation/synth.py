@@ -45,7 +45,7 @@ import numpy as np
 from hystdisc.data.io import Dataset, Run, write_csv
 from hystdisc.errors import HystdiscError
 from hystdisc.models import Model, TermModel
-from hystdisc.simulation.core import simulate_driven_runs, simulate_mech
+from hystdisc.simulation import simulate_driven_runs, simulate_mech
 
 try:  # Python >= 3.11
     import tomllib
