@@ -42,6 +42,7 @@ from typing import Any
 
 import numpy as np
 
+from hystdisc import registry
 from hystdisc.data.io import Dataset, Run, write_csv
 from hystdisc.errors import HystdiscError
 from hystdisc.models import Model, TermModel
@@ -364,10 +365,12 @@ def generate(
     """
     mdl = _as_model(model)
     exp = str(experiment).strip().lower()
-    if exp not in ("release", "driven", "forced"):
+    if exp not in registry.experiment_names():
         raise HystdiscError(
-            f"unknown experiment {experiment!r}; fix: use release, driven or forced"
+            f"unknown experiment {experiment!r}; fix: use "
+            f"{', '.join(registry.experiment_names()[:-1])} or {registry.experiment_names()[-1]}"
         )
+    kind = registry.get_experiment(exp)
     cur = _check_currents(currents)
     duration = _number(duration, "duration", positive=True)
     fs = _number(fs, "fs", positive=True)
@@ -387,7 +390,7 @@ def generate(
                 "turn as a whole number > 0"
             )
         q = 2.0 * np.pi / int(encoder_counts)
-    per_current = len(drives) if exp == "driven" and isinstance(drives, (list, tuple)) else 1
+    per_current = len(drives) if kind.motion_imposed and isinstance(drives, (list, tuple)) else 1
     total = duration * fs * len(cur) * max(per_current, 1)
     if not total <= MAX_SAMPLES:  # also catches an overflow to inf
         raise HystdiscError(
@@ -400,18 +403,18 @@ def generate(
             f"duration {duration:g} s at fs {fs:g} Hz gives {n} sample(s); fix: record longer "
             "or sample faster"
         )
-    if exp != "driven" and drives:
+    if not kind.motion_imposed and drives:
         raise HystdiscError(
             f"drives are only used by driven experiments, not {exp}; fix: drop them"
         )
-    if exp != "forced" and input_spec is not None:
+    if not kind.has_input and input_spec is not None:
         raise HystdiscError(f"an input is only used by forced experiments, not {exp}; fix: drop it")
     t = np.arange(n) / fs
     rng = np.random.default_rng(int(seed))
     label = repr(mdl) if isinstance(mdl, Model) else "a term model"
     source = f"synthetic {exp} data of {label}"
 
-    if exp == "driven":
+    if kind.motion_imposed:
         if theta0 is not None:
             raise HystdiscError(
                 "theta0 is not used by driven experiments (theta is imposed); fix: drop it"
@@ -432,7 +435,7 @@ def generate(
         return Dataset(runs, exp, source)
 
     if theta0 is None:
-        th0 = [0.3 if exp == "release" else 0.0] * len(cur)
+        th0 = [0.3 if kind.starts_at_rest else 0.0] * len(cur)
     elif isinstance(theta0, (int, float, np.floating)) and not isinstance(theta0, bool):
         th0 = [_number(theta0, "theta0")] * len(cur)
     else:
@@ -443,7 +446,7 @@ def generate(
                 "one per current"
             )
     inputs = None
-    if exp == "forced":
+    if kind.has_input:
         spec = _check_input_spec(input_spec)
         inputs = [make_input(spec, t, rng) for _ in cur]
     sims, _ = simulate_mech(mdl, [t] * len(cur), cur, th0, inputs=inputs)
