@@ -7,35 +7,50 @@ The main entry points:
 - :class:`hystdisc.Model` and :func:`hystdisc.generate` — families, effects and the rig
   simulator for synthetic data;
 - :class:`hystdisc.Results` — the ``results.json`` contract.
+
+Importing the package is cheap: only :mod:`hystdisc.errors` is loaded; every other public
+name imports its module (numpy, numba, pysindy, ...) on first use, so ``hystdisc --help``
+stays fast.
+
+Examples
+--------
+>>> import hystdisc
+>>> hystdisc.TermModel.__name__
+'TermModel'
 """
 
 from __future__ import annotations
 
+import importlib
+from typing import Any
+
 __version__ = "0.1.0"
 
 from hystdisc.errors import HystdiscError, HystdiscWarning  # noqa: E402
-from hystdisc.models import Model, TermModel  # noqa: E402
+
+#: Public name -> ``module:attribute``; imported on first access (module ``__getattr__``).
+_LAZY: dict[str, str] = {
+    "Discovery": "hystdisc.discovery.stage1:Discovery",
+    "Model": "hystdisc.models:Model",
+    "Results": "hystdisc.results.core:Results",
+    "TermModel": "hystdisc.models:TermModel",
+    "generate": "hystdisc.simulation.synth:generate",
+    "load": "hystdisc.data.io:load",
+}
 
 
-def __getattr__(name: str):
-    # heavier modules (pysindy, the estimator) load on first use
-    if name == "Discovery":
-        from hystdisc.discovery.stage1 import Discovery
+def __getattr__(name: str) -> Any:
+    path = _LAZY.get(name)
+    if path is None:
+        raise AttributeError(f"module 'hystdisc' has no attribute {name!r}")
+    module, _, attr = path.partition(":")
+    value = getattr(importlib.import_module(module), attr)
+    globals()[name] = value  # later look-ups skip this function
+    return value
 
-        return Discovery
-    if name == "Results":
-        from hystdisc.results.core import Results
 
-        return Results
-    if name == "load":
-        from hystdisc.data.io import load
-
-        return load
-    if name == "generate":
-        from hystdisc.simulation.synth import generate
-
-        return generate
-    raise AttributeError(f"module 'hystdisc' has no attribute {name!r}")
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_LAZY})
 
 
 __all__ = [

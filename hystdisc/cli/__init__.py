@@ -5,6 +5,12 @@ Each command lives in its own module of this package and provides ``add_parser(s
 (:class:`~hystdisc.errors.HystdiscError`) are printed as one line on stderr with exit
 status 2; Ctrl-C exits with 130 and leaves no partial files (outputs are written
 atomically).
+
+Building the parsers is cheap: this package and the command modules import only
+:mod:`hystdisc.registry` (for the names of families and experiment types) and the
+standard library at module level; each command imports the numerical layers inside its
+``run(args)``, so ``hystdisc --help`` imports no numpy, numba, scipy, scikit-learn,
+pysindy or matplotlib (``tests/test_cli.py`` checks it).
 """
 
 from __future__ import annotations

@@ -1,9 +1,9 @@
 """Discover many datasets at once: serially, on local processes, or on a Dask cluster.
 
 ``hystdisc discover A.csv B.csv --each --jobs 2`` treats every file (or folder) as a
-dataset of its own and runs :class:`~hystdisc.discovery.stage1.Discovery` on each, in parallel
+dataset of its own and runs :class:`~hystdisc.Discovery` on each, in parallel
 over datasets. The work of one dataset is always done by the same function,
-:func:`discover_one`, in a fresh :class:`~hystdisc.discovery.stage1.Discovery` whose options are
+:func:`discover_one`, in a fresh :class:`~hystdisc.Discovery` whose options are
 passed by value, and the ``results.json`` text is produced where the fit ran; the parent
 process only writes files. So the results of a parallel run are byte-identical to those of
 the serial run (discovery is deterministic for a given ``seed``, and it limits BLAS to one
@@ -100,22 +100,24 @@ def discover_one(
     load_options : dict, optional
         Keyword arguments of :func:`hystdisc.data.io.load` (``experiment``, ``rig``, ...).
     discovery_options : dict, optional
-        Keyword arguments of :class:`~hystdisc.discovery.stage1.Discovery`.
+        Keyword arguments of :class:`~hystdisc.Discovery`.
 
     Returns
     -------
     BatchItem
         The ``results.json`` text and the report, or the error message.
     """
+    from hystdisc.cli.common import fit_discovery, make_discovery
     from hystdisc.data.io import load
-    from hystdisc.discovery.stage1 import Discovery
 
     item = BatchItem(str(source))
+    options = dict(discovery_options or {})
+    progress = options.pop("progress", None)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", HystdiscWarning)
         try:
             data = load(str(source), **dict(load_options or {}))
-            disc = Discovery(**dict(discovery_options or {})).fit(data)
+            disc = fit_discovery(make_discovery(options, progress), data, progress)
         except HystdiscError as exc:
             item.error = str(exc)
         else:

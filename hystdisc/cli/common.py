@@ -1,21 +1,33 @@
-"""Options and helpers shared by the commands that read data."""
+"""Options and helpers shared by the commands that read data.
+
+This module is imported to build the parsers (``hystdisc --help``), so it imports nothing
+heavy at module level: names of families and experiments come from
+:mod:`hystdisc.registry`, and the data layer and the estimator are imported inside the
+functions that use them. The estimator is made and fitted only by :func:`make_discovery`
+and :func:`fit_discovery`: every command (and :mod:`hystdisc.cli.batch`) goes through
+them, so a change of the estimator's signature is adapted here, once.
+"""
 
 from __future__ import annotations
 
 import argparse
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
+from typing import TYPE_CHECKING, Any
 
-from hystdisc.data.io import Dataset, load
+from hystdisc import registry
 from hystdisc.errors import HystdiscError
+
+if TYPE_CHECKING:  # pragma: no cover
+    from hystdisc.data.io import Dataset
 
 
 def add_data_options(p: argparse.ArgumentParser) -> None:
     """``--experiment``, ``--rig``, ``--column`` and ``--units`` for commands that read data."""
     p.add_argument(
         "--experiment",
-        choices=("release", "driven", "forced"),
+        choices=registry.experiment_names(),
         help="experiment type (default: from the columns: torque -> driven, input -> forced)",
     )
     p.add_argument(
@@ -55,6 +67,8 @@ def _pairs(items: list[str], flag: str) -> dict[str, str]:
 
 def load_data(args: argparse.Namespace, files: list[str]) -> Dataset:
     """Load the data files named on the command line with the data options."""
+    from hystdisc.data.io import load
+
     columns: dict = _pairs(args.column, "--column")
     columns = {k: int(v) if v.isdigit() else v for k, v in columns.items()}
     return load(
@@ -80,16 +94,14 @@ def progress_printer(quiet: bool) -> Callable[[str], None] | None:
 
 def add_discovery_options(p: argparse.ArgumentParser) -> None:
     """Options of the estimator shared by ``discover`` and ``report`` (plus the data options)."""
-    from hystdisc.discovery.stage1 import ALL_FAMILIES
-    from hystdisc.models import FAMILIES
-
+    families = registry.family_names()
     p.add_argument(
-        "--model", help=f"declare the family instead of selecting one: {', '.join(FAMILIES)}"
+        "--model", help=f"declare the family instead of selecting one: {', '.join(families)}"
     )
     p.add_argument(
         "--families",
         metavar="LIST",
-        help=f"families to compare, comma separated (default: {','.join(ALL_FAMILIES)})",
+        help=f"families to compare, comma separated (default: {','.join(families)})",
     )
     add_data_options(p)
     p.add_argument("--seed", type=int, default=0, help="seed of the resampling (default 0)")
@@ -116,7 +128,7 @@ def add_discovery_options(p: argparse.ArgumentParser) -> None:
 
 
 def discovery_options(args: argparse.Namespace) -> dict:
-    """Keyword arguments of :class:`~hystdisc.discovery.stage1.Discovery` from the shared options."""
+    """Keyword arguments of :class:`~hystdisc.Discovery` from the shared options."""
     families = None
     if args.families:
         families = [f.strip() for f in args.families.split(",") if f.strip()]
@@ -132,3 +144,44 @@ def discovery_options(args: argparse.Namespace) -> dict:
         "input_hold": args.input_hold,
         "single_current": args.single_current,
     }
+
+
+def make_discovery(
+    options: Mapping[str, Any], progress: Callable[[str], None] | None = None
+) -> Any:
+    """The estimator with ``options`` (see :func:`discovery_options`), not fitted yet.
+
+    This and :func:`fit_discovery` are the only places where the command-line interface
+    touches the estimator's signature.
+
+    Parameters
+    ----------
+    options : mapping
+        Keyword arguments of :class:`~hystdisc.Discovery`.
+    progress : callable, optional
+        Receives the progress messages (see :func:`progress_printer`); None is silent.
+
+    Returns
+    -------
+    Discovery
+        The estimator.
+    """
+    from hystdisc import Discovery
+
+    return Discovery(**dict(options), progress=progress)
+
+
+def fit_discovery(disc: Any, data: Dataset, progress: Callable[[str], None] | None = None) -> Any:
+    """Fit ``disc`` (from :func:`make_discovery`) to ``data``; returns the fitted estimator.
+
+    ``progress`` is the callable given to :func:`make_discovery` (unused here today; kept
+    so that an estimator taking it in ``fit`` is adapted in this one place).
+    """
+    return disc.fit(data)
+
+
+def discover(
+    args: argparse.Namespace, data: Dataset, progress: Callable[[str], None] | None = None
+) -> Any:
+    """Make the estimator from the command-line options and fit it to ``data``."""
+    return fit_discovery(make_discovery(discovery_options(args), progress), data, progress)

@@ -15,14 +15,15 @@ import argparse
 import sys
 from pathlib import Path
 
+from hystdisc import registry
 from hystdisc.cli.common import (
     _pairs,
     add_discovery_options,
+    discover,
     discovery_options,
     load_data,
     progress_printer,
 )
-from hystdisc.discovery.stage1 import Discovery
 from hystdisc.errors import HystdiscError
 
 
@@ -32,8 +33,8 @@ def add_parser(sub) -> argparse.ArgumentParser:
         help="discover the hysteresis model of the data and fit every family",
         description=(
             "Discover the active terms by sparse regression with a latent hysteretic state, "
-            "fit every family (Bingham, Dahl, LuGre, Bouc-Wen) by output error with 95 % "
-            "intervals, select one by BIC, and write results.json."
+            f"fit every family ({', '.join(registry.family_names())}) by output error with "
+            "95 % intervals, select one by BIC, and write results.json."
         ),
     )
     p.add_argument(
@@ -96,10 +97,7 @@ def run(args: argparse.Namespace) -> int:
 
         check_report_path(args.report, args.force)
     data = load_data(args, args.files)
-    disc = Discovery(
-        **discovery_options(args),
-        progress=progress_printer(args.quiet),
-    ).fit(data)
+    disc = discover(args, data, progress_printer(args.quiet))
     res = disc.results_
     json_path.parent.mkdir(parents=True, exist_ok=True)
     res.save(json_path, force=args.force)

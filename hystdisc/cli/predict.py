@@ -9,14 +9,8 @@ from __future__ import annotations
 
 import argparse
 
-import numpy as np
-
 from hystdisc.cli.common import add_data_options, load_data
-from hystdisc.data.io import atomic_write_text
 from hystdisc.errors import HystdiscError
-from hystdisc.fitting.predict import predict_dataset
-from hystdisc.results.core import Results
-from hystdisc.simulation import HOLDS
 
 
 def add_parser(sub) -> argparse.ArgumentParser:
@@ -40,6 +34,13 @@ def add_parser(sub) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from hystdisc.data.io import atomic_write_text
+    from hystdisc.fitting.predict import predict_dataset
+    from hystdisc.results.core import Results
+    from hystdisc.simulation import HOLDS
+
     res = Results.load(args.results)
     if args.family and args.family not in res.families:
         raise HystdiscError(

@@ -17,11 +17,10 @@ from pathlib import Path
 
 from hystdisc.cli.common import (
     add_discovery_options,
-    discovery_options,
+    discover,
     load_data,
     progress_printer,
 )
-from hystdisc.discovery.stage1 import Discovery
 from hystdisc.errors import HystdiscError
 
 HELP = "discover the model and write an HTML model-comparison report (+ Markdown summary)"
@@ -75,7 +74,7 @@ def run(args: argparse.Namespace) -> int:
         raise HystdiscError(f"--max-runs {args.max_runs} is below 1; fix: give 1 or more")
     data = load_data(args, args.files)
     say = progress_printer(args.quiet)
-    disc = Discovery(**discovery_options(args), progress=say).fit(data)
+    disc = discover(args, data, say)
     path = write_report(
         disc,
         data,

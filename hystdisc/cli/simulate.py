@@ -15,16 +15,8 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
+from hystdisc import registry
 from hystdisc.errors import HystdiscError
-from hystdisc.models import FAMILIES
-from hystdisc.simulation.synth import (
-    generate_from_scenario,
-    load_scenario,
-    parse_drive,
-    write_dataset,
-)
 
 HELP = "write a synthetic dataset of a known model (long CSV)"
 
@@ -44,7 +36,7 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
             "-o bw.csv | hystdisc simulate --regenerate data_synth --force"
         ),
     )
-    p.add_argument("--model", help=f"family: {', '.join(FAMILIES)}")
+    p.add_argument("--model", help=f"family: {', '.join(registry.family_names())}")
     p.add_argument(
         "--set",
         action="append",
@@ -60,7 +52,10 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
         help="add a catalogued effect, e.g. coulomb or coulomb:f_c=0.5 (repeatable)",
     )
     p.add_argument("--currents", metavar="LIST", help="coil currents in A, e.g. 0,0.25,0.5,0.75,1")
-    p.add_argument("--experiment", help="release (default), driven or forced")
+    release, *others = registry.experiment_names()
+    p.add_argument(
+        "--experiment", help=f"{release} (default), {', '.join(others[:-1])} or {others[-1]}"
+    )
     p.add_argument("--theta0", metavar="RAD", help="initial angle of release/forced runs")
     p.add_argument("--duration", metavar="S", help="length of every run in s (default 6)")
     p.add_argument("--fs", metavar="HZ", help="sampling rate in Hz (default 1000)")
@@ -159,6 +154,8 @@ def parse_input(text: str) -> dict[str, Any]:
 
 def settings_from_args(args: argparse.Namespace) -> dict[str, Any]:
     """Scenario (if any) overridden by the command-line flags."""
+    from hystdisc.simulation.synth import load_scenario, parse_drive
+
     sc: dict[str, Any] = load_scenario(args.scenario) if args.scenario else {}
     sc.setdefault("params", {})
     sc.setdefault("effects", {})
@@ -198,7 +195,8 @@ def settings_from_args(args: argparse.Namespace) -> dict[str, Any]:
         sc["output"] = args.output
     if not sc.get("model"):
         raise HystdiscError(
-            f"no model given; fix: pass --model ({', '.join(FAMILIES)}) or --scenario FILE.toml"
+            f"no model given; fix: pass --model ({', '.join(registry.family_names())}) or "
+            "--scenario FILE.toml"
         )
     return sc
 
@@ -210,6 +208,8 @@ def model_label(sc: dict[str, Any]) -> str:
 
 def describe(ds, path: Path, model: str) -> str:
     """One line saying what was written."""
+    import numpy as np
+
     samples = sum(r.n for r in ds.runs)
     cur = ", ".join(f"{c:g}" for c in sorted(set(np.round(ds.currents, 9))))
     return (
@@ -222,6 +222,8 @@ def describe(ds, path: Path, model: str) -> str:
 
 
 def _regenerate(args: argparse.Namespace) -> int:
+    from hystdisc.simulation.synth import generate_from_scenario, load_scenario, write_dataset
+
     folder = Path(args.regenerate)
     if not folder.is_dir():
         raise HystdiscError(
@@ -260,6 +262,8 @@ def _regenerate(args: argparse.Namespace) -> int:
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``hystdisc simulate``."""
+    from hystdisc.simulation.synth import generate_from_scenario, write_dataset
+
     if args.regenerate:
         if args.scenario:
             raise HystdiscError(

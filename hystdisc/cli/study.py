@@ -11,10 +11,9 @@ import argparse
 import io
 from pathlib import Path
 
+from hystdisc import registry
 from hystdisc.cli.simulate import _float, _int, parse_assignments, parse_effect
-from hystdisc.data.io import atomic_write_bytes
 from hystdisc.errors import HystdiscError
-from hystdisc.models import FAMILIES
 
 HELP = "plot a model's hysteresis loops while one parameter varies"
 FORMATS = (".png", ".pdf", ".svg")
@@ -31,7 +30,7 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
             "value of one parameter (or of the current: --vary current=0,0.5,1)."
         ),
     )
-    p.add_argument("--model", required=True, help=f"family: {', '.join(FAMILIES)}")
+    p.add_argument("--model", required=True, help=f"family: {', '.join(registry.family_names())}")
     p.add_argument(
         "--vary", required=True, metavar="NAME=V1,V2,...", help="parameter and its values"
     )
@@ -56,6 +55,7 @@ def run(args: argparse.Namespace) -> int:
     """Execute ``hystdisc study``."""
     from matplotlib.figure import Figure
 
+    from hystdisc.data.io import atomic_write_bytes
     from hystdisc.simulation.studies import parameter_study, plot_study
 
     out = Path(args.output)

@@ -1,9 +1,9 @@
 """What an experiment type is: what is measured, what is simulated, what stage 1 regresses.
 
-An experiment type says how a run was made (DESIGN: release, driven, forced). Code that
-needs to know asks the experiment object for the property it needs, instead of comparing
-names: ``experiment.output`` is the signal the output-error fit compares, ``experiment.
-motion_imposed`` says whether the angle is an input, and so on.
+An experiment type says how a run was made (release, driven, forced; doc/design.rst
+section 1). Code that needs to know asks the experiment object for the property it needs,
+instead of comparing names: ``experiment.output`` is the signal the output-error fit
+compares, ``experiment.motion_imposed`` says whether the angle is an input, and so on.
 
 Examples
 --------

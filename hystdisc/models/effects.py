@@ -1,4 +1,7 @@
-"""The effect catalogue: physical mechanisms a declared model may lack (DESIGN section 6)."""
+"""The effect catalogue: physical mechanisms a declared model may lack.
+
+See doc/design.rst section 6 (closing the loop) for the catalogue and how it is used.
+"""
 
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
 """Fast fixed-step simulation of the rig with any model in term form.
 
-Three experiment types (DESIGN.md section 1):
+Three experiment types (doc/design.rst section 1):
 
 ``release``
     ``theta'' = -T(theta, theta', z, i)`` per unit inertia (the spring is the ``theta``

@@ -1,6 +1,6 @@
 """Synthetic datasets: simulate a known model on the rig and measure it like a sensor would.
 
-Three experiment types (DESIGN.md section 1):
+Three experiment types (doc/design.rst section 1):
 
 ``release``
     The SAS rig released from ``theta0`` at rest, one run per current, per unit inertia.

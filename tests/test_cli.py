@@ -1,0 +1,115 @@
+"""The command-line layer: cheap parsers, names from the registry, one way to the estimator.
+
+``hystdisc --help`` must not import the numerical stack (numpy, numba, scipy, scikit-learn,
+pysindy, matplotlib): the parsers are built from :mod:`hystdisc.registry` alone and each
+command imports the heavy layers inside its ``run``. What is checked here is the set of
+imported modules, not a time (no timed tests).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import hystdisc
+from hystdisc import registry
+from hystdisc.cli import COMMANDS, build_parser
+from hystdisc.cli.common import discovery_options, make_discovery
+
+#: Top-level packages the help path must not import.
+HEAVY = ("numpy", "numba", "scipy", "sklearn", "pysindy", "matplotlib")
+
+ROOT = Path(hystdisc.__file__).resolve().parent.parent
+
+
+def _heavy_modules(code: str) -> list[str]:
+    """Run ``code`` in a fresh interpreter; the heavy modules it left imported."""
+    script = (
+        "import sys\n"
+        f"{code}\n"
+        f"heavy = {set(HEAVY)!r}\n"
+        "import json\n"
+        "print(json.dumps(sorted(m for m in sys.modules if m.split('.')[0] in heavy)))\n"
+    )
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]),
+    }
+    out = subprocess.run(
+        [sys.executable, "-c", script],
+        capture_output=True,
+        text=True,
+        env=env,
+        cwd=ROOT,
+        check=True,
+    )
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+@pytest.mark.parametrize("command", [None, *COMMANDS])
+def test_help_imports_nothing_heavy(command):
+    argv = ["--help"] if command is None else [command, "--help"]
+    code = (
+        "import contextlib, io\n"
+        "from hystdisc.cli import main\n"
+        "with contextlib.redirect_stdout(io.StringIO()):\n"
+        "    try:\n"
+        f"        main({argv!r})\n"
+        "    except SystemExit:\n"
+        "        pass"
+    )
+    assert _heavy_modules(code) == []
+
+
+def test_import_hystdisc_is_cheap_and_names_resolve_lazily():
+    assert _heavy_modules("import hystdisc, hystdisc.registry, hystdisc.errors") == []
+    # the lazy names resolve to the objects of their modules
+    from hystdisc.models import Model, TermModel
+
+    assert hystdisc.Model is Model
+    assert hystdisc.TermModel is TermModel
+    assert {"Discovery", "Model", "Results", "TermModel", "load", "generate"} <= set(dir(hystdisc))
+    with pytest.raises(AttributeError, match="no attribute 'nope'"):
+        _ = hystdisc.nope
+
+
+def _subparser(name: str):
+    return build_parser()._subparsers._group_actions[0].choices[name]
+
+
+def test_every_command_is_registered():
+    assert tuple(build_parser()._subparsers._group_actions[0].choices) == COMMANDS
+
+
+@pytest.mark.parametrize("command", ["discover", "predict", "report"])
+def test_experiment_choices_come_from_the_registry(command):
+    (action,) = [a for a in _subparser(command)._actions if a.dest == "experiment"]
+    assert tuple(action.choices) == registry.experiment_names()
+
+
+@pytest.mark.parametrize("command", ["discover", "report", "simulate", "study"])
+def test_model_help_lists_every_registered_family(command):
+    (action,) = [a for a in _subparser(command)._actions if a.dest == "model"]
+    assert ", ".join(registry.family_names()) in action.help
+
+
+def test_families_default_lists_every_registered_family():
+    (action,) = [a for a in _subparser("discover")._actions if a.dest == "families"]
+    assert f"default: {','.join(registry.family_names())}" in action.help
+
+
+def test_make_discovery_passes_the_command_line_options():
+    args = build_parser().parse_args(
+        ["discover", "x.csv", "--families", "dahl, bingham", "--seed", "3", "--no-heldout"]
+    )
+    disc = make_discovery(discovery_options(args), print)
+    assert isinstance(disc, hystdisc.Discovery)
+    assert disc.families == ["dahl", "bingham"]
+    assert disc.seed == 3
+    assert disc.heldout is False
+    assert disc.close_loop is True
