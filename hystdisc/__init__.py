@@ -28,7 +28,7 @@ def __getattr__(name: str):
 
         return Results
     if name == "load":
-        from hystdisc.data.io import load
+        from hystdisc.data import load
 
         return load
     if name == "generate":

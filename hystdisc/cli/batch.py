@@ -27,7 +27,7 @@ stop the others: its one-line message is returned in :attr:`BatchItem.error`.
 Examples
 --------
 >>> import tempfile, pathlib
->>> from hystdisc.data.io import write_csv
+>>> from hystdisc.data import write_csv
 >>> from hystdisc.simulation.synth import generate
 >>> with tempfile.TemporaryDirectory() as d:
 ...     f = pathlib.Path(d, "dahl.csv")
@@ -107,7 +107,7 @@ def discover_one(
     BatchItem
         The ``results.json`` text and the report, or the error message.
     """
-    from hystdisc.data.io import load
+    from hystdisc.data import load
     from hystdisc.discovery.stage1 import Discovery
 
     item = BatchItem(str(source))

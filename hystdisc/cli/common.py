@@ -7,7 +7,7 @@ import sys
 import time
 from collections.abc import Callable
 
-from hystdisc.data.io import Dataset, load
+from hystdisc.data import Dataset, load
 from hystdisc.errors import HystdiscError
 
 

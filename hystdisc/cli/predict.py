@@ -12,7 +12,7 @@ import argparse
 import numpy as np
 
 from hystdisc.cli.common import add_data_options, load_data
-from hystdisc.data.io import atomic_write_text
+from hystdisc.data import atomic_write_text
 from hystdisc.errors import HystdiscError
 from hystdisc.fitting.predict import predict_dataset
 from hystdisc.results.core import Results

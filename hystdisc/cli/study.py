@@ -12,7 +12,7 @@ import io
 from pathlib import Path
 
 from hystdisc.cli.simulate import _float, _int, parse_assignments, parse_effect
-from hystdisc.data.io import atomic_write_bytes
+from hystdisc.data import atomic_write_bytes
 from hystdisc.errors import HystdiscError
 from hystdisc.models import FAMILIES
 

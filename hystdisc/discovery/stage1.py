@@ -41,7 +41,7 @@ import pysindy as ps
 from scipy.optimize import minimize
 from threadpoolctl import threadpool_limits
 
-from hystdisc.data.io import Dataset, distinct_currents, estimate_noise, trim_release, validate
+from hystdisc.data import Dataset, distinct_currents, estimate_noise, trim_release, validate
 from hystdisc.discovery.differentiation import differentiate
 from hystdisc.discovery.library import DEFAULT_TORQUE_TERMS, FAMILY_SHAPE, SHAPES
 from hystdisc.errors import HystdiscError, HystdiscWarning

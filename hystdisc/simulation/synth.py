@@ -42,7 +42,7 @@ from typing import Any
 
 import numpy as np
 
-from hystdisc.data.io import Dataset, Run, write_csv
+from hystdisc.data import Dataset, Run, write_csv
 from hystdisc.errors import HystdiscError
 from hystdisc.models import Model, TermModel
 from hystdisc.simulation.core import simulate_driven_runs, simulate_mech
