@@ -46,7 +46,7 @@ import numpy as np
 from scipy.optimize import differential_evolution
 from threadpoolctl import threadpool_limits
 
-from hystdisc.data.io import Dataset, atomic_write_text, load
+from hystdisc.data import Dataset, atomic_write_text, load
 from hystdisc.discovery.stage1 import Discovery
 from hystdisc.fitting.output_error import FamilyParametrization, FitData, OutputErrorFitter
 from hystdisc.models import RIG_PARAMS

@@ -25,7 +25,7 @@ import numpy as np
 import scipy
 from scipy.integrate import solve_ivp
 
-from hystdisc.data.io import atomic_write_text
+from hystdisc.data import atomic_write_text
 from hystdisc.models import Model
 from hystdisc.simulation import simulate_mech
 

@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from hystdisc.cli.common import progress_printer
-from hystdisc.data.io import Dataset, Run, load
+from hystdisc.data import Dataset, Run, load
 from hystdisc.discovery.stage1 import Discovery
 from hystdisc.models import TermModel, get_family
 from hystdisc.simulation import simulate_forced

@@ -59,7 +59,7 @@ from threadpoolctl import threadpool_limits
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_discover import machine_description, swarm_fit, user_bounds  # noqa: E402
 
-from hystdisc.data.io import Dataset, atomic_write_text, load  # noqa: E402
+from hystdisc.data import Dataset, atomic_write_text, load  # noqa: E402
 from hystdisc.discovery.stage1 import Discovery  # noqa: E402
 from hystdisc.fitting.output_error import FamilyParametrization, FitData, OutputErrorFitter  # noqa: E402
 from hystdisc.models import Model, get_family  # noqa: E402

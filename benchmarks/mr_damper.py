@@ -182,7 +182,7 @@ def subset_validation(folder: Path, train=CI_TRAIN, test=CI_TEST, close_loop=Fal
     """Discover on the tests ``train`` and predict the test ``test`` (final model and the
     Bingham fit of the same run): the same as ``hystdisc discover`` + ``hystdisc predict``,
     in process."""
-    from hystdisc.data.io import load
+    from hystdisc.data import load
     from hystdisc.discovery.stage1 import Discovery
 
     groups = tests_of(folder)

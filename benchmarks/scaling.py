@@ -43,7 +43,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_discover import machine_description  # noqa: E402
 
-from hystdisc.data.io import atomic_write_bytes, atomic_write_text  # noqa: E402
+from hystdisc.data import atomic_write_bytes, atomic_write_text  # noqa: E402
 from hystdisc.discovery.stage1 import Discovery  # noqa: E402
 from hystdisc.models import Model  # noqa: E402
 from hystdisc.simulation.synth import generate  # noqa: E402

@@ -35,7 +35,7 @@ _LAZY: dict[str, str] = {
     "Results": "hystdisc.results.core:Results",
     "TermModel": "hystdisc.models:TermModel",
     "generate": "hystdisc.simulation.synth:generate",
-    "load": "hystdisc.data.io:load",
+    "load": "hystdisc.data:load",
 }
 
 

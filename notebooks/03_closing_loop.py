@@ -35,7 +35,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from hystdisc import Discovery, Model, generate
-from hystdisc.data.io import Dataset, Run
+from hystdisc.data import Dataset, Run
 from hystdisc.plotting.core import loops_figure, plot_fit, plot_residual_spectrum
 from hystdisc.report.core import FAMILY_COLORS, fit_signals, model_loops
 

@@ -37,7 +37,7 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 
 from hystdisc import Discovery, load
-from hystdisc.data.io import Dataset, Run
+from hystdisc.data import Dataset, Run
 from hystdisc.plotting.core import loops_figure, plot_family_comparison, plot_residual_spectrum
 from hystdisc.report.core import FAMILY_COLORS, fit_residuals, model_loops
 

@@ -15,7 +15,7 @@ import pytest
 from hystdisc.cli import batch, build_parser, main
 from hystdisc.cli.batch import discover_many
 from hystdisc.cli.common import discovery_options
-from hystdisc.data.io import write_csv
+from hystdisc.data import write_csv
 from hystdisc.models import Model
 from hystdisc.simulation.synth import generate
 

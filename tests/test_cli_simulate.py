@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from hystdisc.cli import main
-from hystdisc.data.io import read_csv
+from hystdisc.data import read_csv
 from hystdisc.errors import HystdiscError
 from hystdisc.models import Model
 from hystdisc.simulation.synth import generate, generate_from_scenario, load_scenario

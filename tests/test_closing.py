@@ -21,7 +21,7 @@ from hystdisc.closing.loop import (
     candidate_effects,
     score_effects,
 )
-from hystdisc.data.io import Dataset, Run
+from hystdisc.data import Dataset, Run
 from hystdisc.discovery.library import FAMILY_SHAPE
 from hystdisc.discovery.stage1 import Discovery
 from hystdisc.fitting.output_error import FamilyParametrization, FitData

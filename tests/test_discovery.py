@@ -14,7 +14,7 @@ import pytest
 
 from hystdisc import Discovery, Model
 from hystdisc.cli import main
-from hystdisc.data.io import load
+from hystdisc.data import load
 from hystdisc.models import FAMILIES
 from hystdisc.results.core import Results
 from hystdisc.simulation.synth import generate, load_scenario
@@ -178,7 +178,7 @@ def test_results_contract_and_predict_roundtrip(committed, tmp_path):
 
 def test_cli_discover_and_predict(tmp_path, capsys):
     data = generate(Model("dahl"), currents=(0, 0.5, 1.0), duration=3, noise=1e-3, seed=5)
-    from hystdisc.data.io import write_csv
+    from hystdisc.data import write_csv
 
     csv = write_csv(data, tmp_path / "run.csv")
     out = tmp_path / "res.json"
@@ -230,7 +230,7 @@ def test_bad_input_one_line_errors(tmp_path, capsys):
     assert "cols.csv" in err and "fix:" in err
     # one current where selecting a family needs several
     one = generate(Model("dahl"), currents=(0.5,), duration=2, seed=1)
-    from hystdisc.data.io import write_csv
+    from hystdisc.data import write_csv
 
     p1 = write_csv(one, tmp_path / "one.csv")
     err = _one_line_error(capsys, ["discover", str(p1), "--force"])

@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 from hystdisc.cli import build_parser, main
-from hystdisc.data.io import Dataset, Run, write_csv
+from hystdisc.data import Dataset, Run, write_csv
 from hystdisc.discovery.stage1 import Discovery
 from hystdisc.errors import HystdiscError, HystdiscWarning
 from hystdisc.models import Model
@@ -266,7 +266,7 @@ def test_unclipped_and_quantized_data_raise_no_warning():
         ds = generate("dahl", currents=(0.0, 1.0), duration=3.0, noise=0.0, encoder_counts=counts)
         with warnings.catch_warnings():
             warnings.simplefilter("error", HystdiscWarning)
-            from hystdisc.data.io import validate
+            from hystdisc.data import validate
 
             validate(ds)
 

@@ -15,9 +15,9 @@ from pathlib import Path
 
 import pytest
 
-import hystdisc.data.io
+import hystdisc.data.writers
 from hystdisc.cli import main
-from hystdisc.data.io import atomic_write_bytes, atomic_write_text, write_csv
+from hystdisc.data import atomic_write_bytes, atomic_write_text, write_csv
 from hystdisc.errors import HystdiscError
 from hystdisc.simulation.synth import generate
 
@@ -241,16 +241,17 @@ def test_ctrl_c_message_is_true_after_some_outputs(tmp_path, capsys, monkeypatch
     for seed in (1, 2):
         ds = generate("dahl", currents=(0.0, 1.0), duration=1.0, seed=seed)
         files.append(write_csv(ds, tmp_path / f"rig{seed}.csv"))
-    real = hystdisc.data.io.atomic_write_text
+    # every file the package writes goes through this one primitive
+    real = hystdisc.data.writers.atomic_write_bytes
     calls = []
 
-    def second_interrupts(path, text, force=False):
+    def second_interrupts(path, data, force=False):
         calls.append(path)
         if len(calls) == 2:
             raise KeyboardInterrupt
-        return real(path, text, force=force)
+        return real(path, data, force=force)
 
-    monkeypatch.setattr(hystdisc.data.io, "atomic_write_text", second_interrupts)
+    monkeypatch.setattr(hystdisc.data.writers, "atomic_write_bytes", second_interrupts)
     out = tmp_path / "out"
     code, err = cli(["discover", *files, "--each", "--out", out, *FAST_DISCOVER], capsys)
     _check_interrupted(code, err)

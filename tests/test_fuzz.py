@@ -39,7 +39,7 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 from hystdisc.cli import main
-from hystdisc.data.io import (
+from hystdisc.data import (
     CANONICAL_COLUMNS,
     EXPERIMENTS,
     MIN_SAMPLES,
@@ -54,6 +54,7 @@ from hystdisc.data.io import (
 )
 from hystdisc.errors import HystdiscError, HystdiscWarning
 from hystdisc.models import FAMILIES, Model, TermModel
+from hystdisc.registry import get_experiment
 from hystdisc.results.core import Results
 from hystdisc.simulation.synth import (
     SCENARIO_KEYS,
@@ -103,7 +104,7 @@ def check_dataset(ds: Dataset) -> None:
     assert len(ds.runs) >= 1
     names = [r.name for r in ds.runs]
     assert len(set(names)) == len(names), names
-    extra = {"driven": "torque", "forced": "input", "release": None}[ds.experiment]
+    extra = get_experiment(ds.experiment).extra_column
     for r in ds.runs:
         assert isinstance(r.name, str)
         assert isinstance(r.current, float) and math.isfinite(r.current)
@@ -177,8 +178,6 @@ def _report_counts(request):
     if os.environ.get("HYSTDISC_FUZZ_VERBOSE"):
         for (reader, kind), n in sorted(KINDS.items()):
             lines.append(f"    {reader}: {n} x {kind}")
-    for why, n in sorted(KNOWN_SEEN.items()):
-        lines.append(f"  known problem reported to the lead, hit {n} times: {why}")
     text = "\n".join(lines)
     tr = request.config.pluginmanager.get_plugin("terminalreporter")
     capman = request.config.pluginmanager.get_plugin("capturemanager")
@@ -322,7 +321,7 @@ def csv_documents(draw):
         run_ids = ["0"]
     cols = ["run"] if with_run else []
     cols += ["t", "theta", "current"]
-    extra = {"driven": "torque", "forced": "input", "release": None}[experiment]
+    extra = get_experiment(experiment).extra_column
     if extra:
         cols.append(extra)
     if with_dot:
@@ -520,11 +519,8 @@ def test_fuzz_csv_mutations(work, doc):
     if kinds <= BENIGN | {"quote_cells"} and not (quote_cells and doc["delim"] == " "):
         assert ds is not None, f"harmless changes {doc['text_ops']} must load: {data[:80]!r}"
         _check_same(ds, doc)
-    needed = (
-        {"t", "theta", "current"}
-        | ({"torque"} if doc["experiment"] == "driven" else set())
-        | ({"input"} if doc["experiment"] == "forced" else set())
-    )
+    extra = get_experiment(doc["experiment"]).extra_column
+    needed = {"t", "theta", "current"} | ({extra} if extra else set())
     untouched = not doc["text_ops"] and not any(op[0] == "drop_rows" for op in doc["ops"])
     for op in doc["ops"]:
         if op[0] == "ragged" and untouched:
@@ -1314,49 +1310,29 @@ def _mutate_json(doc, path, value, delete):
         cur[path[-1]] = value
 
 
-def known_results_bug(exc: BaseException) -> str | None:
-    """Open problems reported to the lead (each pinned by a strict xfail); None for others.
-
-    Remove an entry when its xfail starts to pass.
-    """
-    if isinstance(exc, RecursionError):  # RESULTS_XFAIL["results_xfail_deep_object.json"]
-        return "deeply nested JSON object: RecursionError in Results (_round)"
-    if isinstance(exc, TypeError) and (
-        "not iterable" in str(exc) or "expected str instance" in str(exc)
-    ):  # test_predict_family_with_families_not_a_table
-        return "predict --family with a 'families' that is not a table: TypeError"
-    return None
-
-
-KNOWN_SEEN: Counter = Counter()
-
-
 def _results_outcome(path: Path):
-    """Load a results.json and ask for every model it holds; tolerate the reported bugs."""
-    try:
-        res = attempt("results", Results.load, path)
-        if res is None:
-            return None
-        exp = res.experiment
-        assert exp is None or isinstance(exp, (str, int, float, list, dict, bool))
-        models = [attempt("results>term_model", res.term_model)]
-        fams = res.families
-        if isinstance(fams, dict):
-            for name in list(fams)[:3]:
-                models.append(attempt("results>term_model", res.term_model, name))
-        for tm in models:
-            if tm is None:
-                continue
-            assert isinstance(tm, TermModel)
-            coefs = [*tm.torque.values(), *tm.hysteresis.values(), tm.n, tm.J]
-            assert all(math.isfinite(c) for c in coefs), "non-finite coefficient accepted"
-        return res
-    except RecursionError as exc:
-        why = known_results_bug(exc)
-        if why is None:
-            raise
-        KNOWN_SEEN[why] += 1
-        return exc
+    """Load a results.json and ask for every model it holds.
+
+    Any exception but a well-formed HystdiscError (a RecursionError on deep nesting, a
+    TypeError on a value of the wrong type) fails the test.
+    """
+    res = attempt("results", Results.load, path)
+    if res is None:
+        return None
+    exp = res.experiment
+    assert exp is None or isinstance(exp, (str, int, float, list, dict, bool))
+    models = [attempt("results>term_model", res.term_model)]
+    fams = res.families
+    if isinstance(fams, dict):
+        for name in list(fams)[:3]:
+            models.append(attempt("results>term_model", res.term_model, name))
+    for tm in models:
+        if tm is None:
+            continue
+        assert isinstance(tm, TermModel)
+        coefs = [*tm.torque.values(), *tm.hysteresis.values(), tm.n, tm.J]
+        assert all(math.isfinite(c) for c in coefs), "non-finite coefficient accepted"
+    return res
 
 
 @fuzz_settings(350)
@@ -1429,17 +1405,11 @@ def test_fuzz_predict_cli(work, predict_data, edits, family):
         argv += ["--family", family]
     COUNTS["predict-cli"] += 1
     err = io.StringIO()
-    try:
-        with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
-            with warnings.catch_warnings():
-                warnings.simplefilter("error", RuntimeWarning)
-                code = main(argv)
-    except (RecursionError, TypeError) as exc:
-        why = known_results_bug(exc)
-        if why is None:
-            raise
-        KNOWN_SEEN[why] += 1
-        return
+    # any exception (RecursionError, TypeError...) propagates and fails the test
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", RuntimeWarning)
+            code = main(argv)
     lines = err.getvalue().splitlines()
     if code == 0:
         COUNTS["predict-cli", "ok"] += 1
@@ -1460,10 +1430,8 @@ def test_fuzz_predict_cli(work, predict_data, edits, family):
 
 # ----------------------------------------------------------------------------- corpus
 
-#: The results.json problems below are in hystdisc/results.py and hystdisc/cli/predict.py,
-#: which this suite may not change; they are reported to the lead. Each xfail is strict: it
-#: turns into a failure once fixed, so that the mark (and the tolerance in
-#: ``known_results_bug``) gets removed.
+#: Open results.json problems (in hystdisc/results/ or hystdisc/cli/predict.py), each
+#: pinned by a strict xfail that turns into a failure once fixed, so that the mark is removed.
 RESULTS_XFAIL: dict[str, str] = {}  # every reported results.py problem is fixed
 
 #: corpus file -> words its one-line error must contain ("ok": it must load)

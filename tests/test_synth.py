@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hystdisc.data.io import read_csv
+from hystdisc.data import read_csv
 from hystdisc.errors import HystdiscError
 from hystdisc.models import Model
 from hystdisc.simulation.synth import (

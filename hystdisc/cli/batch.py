@@ -27,7 +27,7 @@ stop the others: its one-line message is returned in :attr:`BatchItem.error`.
 Examples
 --------
 >>> import tempfile, pathlib
->>> from hystdisc.data.io import write_csv
+>>> from hystdisc.data import write_csv
 >>> from hystdisc.simulation.synth import generate
 >>> with tempfile.TemporaryDirectory() as d:
 ...     f = pathlib.Path(d, "dahl.csv")
@@ -96,9 +96,9 @@ def discover_one(
     Parameters
     ----------
     source : path-like
-        A data file or a folder of runs (see :func:`hystdisc.data.io.load`).
+        A data file or a folder of runs (see :func:`hystdisc.data.load`).
     load_options : dict, optional
-        Keyword arguments of :func:`hystdisc.data.io.load` (``experiment``, ``rig``, ...).
+        Keyword arguments of :func:`hystdisc.data.load` (``experiment``, ``rig``, ...).
     discovery_options : dict, optional
         Keyword arguments of :class:`~hystdisc.Discovery`.
 
@@ -108,7 +108,7 @@ def discover_one(
         The ``results.json`` text and the report, or the error message.
     """
     from hystdisc.cli.common import fit_discovery, make_discovery
-    from hystdisc.data.io import load
+    from hystdisc.data import load
 
     item = BatchItem(str(source))
     options = dict(discovery_options or {})

@@ -20,7 +20,7 @@ from hystdisc import registry
 from hystdisc.errors import HystdiscError
 
 if TYPE_CHECKING:  # pragma: no cover
-    from hystdisc.data.io import Dataset
+    from hystdisc.data import Dataset
 
 
 def add_data_options(p: argparse.ArgumentParser) -> None:
@@ -67,7 +67,7 @@ def _pairs(items: list[str], flag: str) -> dict[str, str]:
 
 def load_data(args: argparse.Namespace, files: list[str]) -> Dataset:
     """Load the data files named on the command line with the data options."""
-    from hystdisc.data.io import load
+    from hystdisc.data import load
 
     columns: dict = _pairs(args.column, "--column")
     columns = {k: int(v) if v.isdigit() else v for k, v in columns.items()}

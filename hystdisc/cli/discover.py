@@ -116,7 +116,7 @@ def run(args: argparse.Namespace) -> int:
 def run_each(args: argparse.Namespace) -> int:
     """``--each``: every FILE is a dataset; serial, ``--jobs N`` or ``--scheduler ADDRESS``."""
     from hystdisc.cli.batch import discover_many, output_paths
-    from hystdisc.data.io import atomic_write_text
+    from hystdisc.data import atomic_write_text
 
     if args.json:
         raise HystdiscError(

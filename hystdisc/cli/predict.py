@@ -36,7 +36,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
 def run(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from hystdisc.data.io import atomic_write_text
+    from hystdisc.data import atomic_write_text
     from hystdisc.fitting.predict import predict_dataset
     from hystdisc.results.core import Results
     from hystdisc.simulation import HOLDS

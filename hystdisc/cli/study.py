@@ -55,7 +55,7 @@ def run(args: argparse.Namespace) -> int:
     """Execute ``hystdisc study``."""
     from matplotlib.figure import Figure
 
-    from hystdisc.data.io import atomic_write_bytes
+    from hystdisc.data import atomic_write_bytes
     from hystdisc.simulation.studies import parameter_study, plot_study
 
     out = Path(args.output)

@@ -204,7 +204,7 @@ class LoopResult:
 
 
 def _n_levels(currents: np.ndarray) -> int:
-    from hystdisc.data.io import distinct_currents
+    from hystdisc.data import distinct_currents
 
     return len(distinct_currents(currents))
 

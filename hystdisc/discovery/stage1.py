@@ -41,7 +41,7 @@ import pysindy as ps
 from scipy.optimize import minimize
 from threadpoolctl import threadpool_limits
 
-from hystdisc.data.io import Dataset, distinct_currents, estimate_noise, trim_release, validate
+from hystdisc.data import Dataset, distinct_currents, estimate_noise, trim_release, validate
 from hystdisc.discovery.differentiation import differentiate
 from hystdisc.discovery.library import DEFAULT_TORQUE_TERMS, FAMILY_SHAPE, SHAPES
 from hystdisc.errors import HystdiscError, HystdiscWarning
@@ -725,7 +725,7 @@ class Discovery:
 
         if not isinstance(dataset, Dataset):
             raise TypeError(
-                "Discovery.fit expects a hystdisc.data.io.Dataset (see hystdisc.data.io.load)"
+                "Discovery.fit expects a hystdisc.data.Dataset (see hystdisc.load)"
             )
         if self.model is not None:
             fams = [get_family(self.model).name]

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hystdisc.data.io import Dataset, estimate_noise
+from hystdisc.data import Dataset, estimate_noise
 from hystdisc.discovery.differentiation import differentiate
 from hystdisc.models import TermModel
 from hystdisc.simulation import simulate_driven_runs, simulate_mech

@@ -207,7 +207,7 @@ def plot_runs(
 
     Parameters
     ----------
-    dataset : hystdisc.data.io.Dataset
+    dataset : hystdisc.data.Dataset
         The runs; ``theta`` is drawn (``torque`` for driven datasets).
     predictions : sequence or dict, optional
         One simulated signal per run (arrays, or objects with a ``theta``/``torque``

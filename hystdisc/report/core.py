@@ -63,7 +63,7 @@ from typing import Any
 import numpy as np
 
 from hystdisc import __version__
-from hystdisc.data.io import Dataset, atomic_write_text, estimate_noise
+from hystdisc.data import Dataset, atomic_write_text, estimate_noise
 from hystdisc.errors import HystdiscError
 from hystdisc.models import FAMILIES
 
@@ -1007,7 +1007,7 @@ def _md_line(text: str) -> str:
 
 
 def _currents(cs) -> str:
-    from hystdisc.data.io import distinct_currents
+    from hystdisc.data import distinct_currents
 
     return ", ".join(f"{c:g}" for c in distinct_currents(cs))
 

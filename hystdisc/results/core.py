@@ -88,7 +88,7 @@ class Results:
 
     def save(self, path: str | Path, force: bool = False) -> Path:
         """Write ``results.json`` atomically (refuses to overwrite without ``force``)."""
-        from hystdisc.data.io import atomic_write_text
+        from hystdisc.data import atomic_write_text
 
         return atomic_write_text(path, self.to_json(), force=force)
 

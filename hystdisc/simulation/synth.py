@@ -43,7 +43,7 @@ from typing import Any
 import numpy as np
 
 from hystdisc import registry
-from hystdisc.data.io import Dataset, Run, write_csv
+from hystdisc.data import Dataset, Run, write_csv
 from hystdisc.errors import HystdiscError
 from hystdisc.models import Model, TermModel
 from hystdisc.simulation import simulate_driven_runs, simulate_mech
@@ -484,7 +484,7 @@ def write_dataset(
     """Write a synthetic dataset as long CSV with ``digits`` significant digits per value.
 
     The values are rounded here (far below the simulated noise) and written by
-    :func:`hystdisc.data.io.write_csv`, which refuses to overwrite without ``force``.
+    :func:`hystdisc.data.write_csv`, which refuses to overwrite without ``force``.
     """
     runs = []
     for r in dataset.runs:

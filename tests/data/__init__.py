@@ -1,0 +1,1 @@
+"""Tests of the data layer (hystdisc.data), one file per module."""
