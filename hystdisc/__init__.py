@@ -24,7 +24,7 @@ def __getattr__(name: str):
 
         return Discovery
     if name == "Results":
-        from hystdisc.results.core import Results
+        from hystdisc.results import Results
 
         return Results
     if name == "load":

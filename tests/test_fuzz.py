@@ -54,7 +54,7 @@ from hystdisc.data.io import (
 )
 from hystdisc.errors import HystdiscError, HystdiscWarning
 from hystdisc.models import FAMILIES, Model, TermModel
-from hystdisc.results.core import Results
+from hystdisc.results import Results
 from hystdisc.simulation.synth import (
     SCENARIO_KEYS,
     generate,

@@ -15,7 +15,7 @@ from hystdisc.cli.common import add_data_options, load_data
 from hystdisc.data.io import atomic_write_text
 from hystdisc.errors import HystdiscError
 from hystdisc.fitting.predict import predict_dataset
-from hystdisc.results.core import Results
+from hystdisc.results import Results
 from hystdisc.simulation.core import HOLDS
 
 
