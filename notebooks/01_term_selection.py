@@ -42,7 +42,7 @@ import warnings
 import matplotlib.pyplot as plt
 
 from hystdisc import Discovery, HystdiscError, HystdiscWarning, Model, generate
-from hystdisc.plotting.core import plot_inclusion, plot_runs, plot_selection_path
+from hystdisc.plotting import plot_inclusion, plot_runs, plot_selection_path
 
 # The test suite sets HYSTDISC_NOTEBOOK_FAST=1 to run this notebook on less data.
 FAST = os.environ.get("HYSTDISC_NOTEBOOK_FAST") == "1"

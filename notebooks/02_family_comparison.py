@@ -33,8 +33,8 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 
 from hystdisc import Discovery, Model, generate
-from hystdisc.plotting.core import loops_figure, plot_family_comparison, plot_fit
-from hystdisc.report.core import FAMILY_COLORS, fit_signals, model_loops, write_report
+from hystdisc.plotting import loops_figure, plot_family_comparison, plot_fit
+from hystdisc.report import FAMILY_COLORS, fit_signals, model_loops, write_report
 from hystdisc.simulation.studies import loop
 
 FAST = os.environ.get("HYSTDISC_NOTEBOOK_FAST") == "1"

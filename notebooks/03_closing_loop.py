@@ -36,8 +36,8 @@ import numpy as np
 
 from hystdisc import Discovery, Model, generate
 from hystdisc.data.io import Dataset, Run
-from hystdisc.plotting.core import loops_figure, plot_fit, plot_residual_spectrum
-from hystdisc.report.core import FAMILY_COLORS, fit_signals, model_loops
+from hystdisc.plotting import loops_figure, plot_fit, plot_residual_spectrum
+from hystdisc.report import FAMILY_COLORS, fit_signals, model_loops
 
 FAST = os.environ.get("HYSTDISC_NOTEBOOK_FAST") == "1"
 DURATION = 2.5 if FAST else 4.0

@@ -38,8 +38,8 @@ import matplotlib.pyplot as plt
 
 from hystdisc import Discovery, load
 from hystdisc.data.io import Dataset, Run
-from hystdisc.plotting.core import loops_figure, plot_family_comparison, plot_residual_spectrum
-from hystdisc.report.core import FAMILY_COLORS, fit_residuals, model_loops
+from hystdisc.plotting import loops_figure, plot_family_comparison, plot_residual_spectrum
+from hystdisc.report import FAMILY_COLORS, fit_residuals, model_loops
 
 FAST = os.environ.get("HYSTDISC_NOTEBOOK_FAST") == "1"
 root = os.environ.get("HYSTDISC_DATA")
