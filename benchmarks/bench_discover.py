@@ -30,7 +30,6 @@ Run:  python benchmarks/bench_discover.py [--budget 300] [--repeats 3]
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 import resource
@@ -50,6 +49,7 @@ from hystdisc.data import Dataset, atomic_write_text, load
 from hystdisc.discovery.stage1 import Discovery
 from hystdisc.fitting.output_error import FamilyParametrization, FitData, OutputErrorFitter
 from hystdisc.models import RIG_PARAMS
+from hystdisc.results import Results
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "results"
@@ -100,7 +100,7 @@ class DiscoverTiming:
 
     wall: list[float]
     cpu: list[float]
-    results: dict
+    results: Results
 
     @property
     def median_wall(self) -> float:
@@ -147,7 +147,7 @@ def time_cli_discover(
                 continue  # warm-up: numba's on-disk compile cache, OS file cache
             wall.append(t1 - t0)
             cpu.append((r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime))
-        results = json.loads(out.read_text())
+        results = Results.load(out)
     return DiscoverTiming(wall, cpu, results)
 
 
@@ -344,15 +344,15 @@ def main(argv: list[str] | None = None) -> str:
     say()
 
     disc = time_cli_discover(args.data, args.repeats)
-    fam = disc.results["families"][args.family]
-    target = 1.01 * fam["rms"]
+    fam = disc.results.families[args.family]
+    target = 1.01 * fam.rms
     walls = ", ".join(f"{w:.2f}" for w in disc.wall)
     say(f"(a) hystdisc discover {rel}  (fresh interpreter, after 1 warm-up)")
     say(f"    wall times [s]: {walls}; median {disc.median_wall:.2f} s")
     say(f"    CPU time of the child (user+sys), median: {disc.median_cpu:.2f} s")
     say(
-        f"    selected family: {disc.results['family']}; RMS of {args.family}: {fam['rms']:.6g} rad "
-        f"({fam['rms'] / disc.results['noise_std']:.3f}x the estimated noise)"
+        f"    selected family: {disc.results.family}; RMS of {args.family}: {fam.rms:.6g} rad "
+        f"({fam.rms / disc.results.noise_std:.3f}x the estimated noise)"
     )
     in_wall, in_cpu = time_inprocess_discover(data, 1)
     say(

@@ -63,6 +63,7 @@ from hystdisc.data import Dataset, atomic_write_text, load  # noqa: E402
 from hystdisc.discovery.stage1 import Discovery  # noqa: E402
 from hystdisc.fitting.output_error import FamilyParametrization, FitData, OutputErrorFitter  # noqa: E402
 from hystdisc.models import Model, get_family  # noqa: E402
+from hystdisc.registry import family_names  # noqa: E402
 from hystdisc.simulation.synth import generate  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -554,7 +555,7 @@ def main(argv: list[str] | None = None) -> str:
         families = ["dahl", "bouc-wen"]
         budget, starts, nfev = 60.0, 3, 30
     else:
-        families = ["bingham", "dahl", "lugre", "bouc-wen", "bouc-wen-std"]
+        families = list(family_names())
         budget, starts, nfev = 300.0, 10, 100
     if args.families:
         families = [f.strip() for f in args.families.split(",")]

@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import argparse
 import csv
-import json
 import os
 import re
 import subprocess
@@ -50,7 +49,14 @@ def tests_of(folder: Path) -> dict[str, list[Path]]:
 
 
 def _names(effects: list) -> list[str]:
-    return [e["name"] if isinstance(e, dict) else str(e) for e in effects]
+    return [e if isinstance(e, str) else e.name for e in effects]
+
+
+def _results(path: Path):
+    """The typed record of a ``results.json`` (hystdisc.results.Results)."""
+    from hystdisc.results import Results
+
+    return Results.load(path)
 
 
 def hystdisc(*args: str, log: Path | None = None) -> tuple[str, float]:
@@ -101,7 +107,7 @@ def full_set(files: list[str], work: Path, effects: bool) -> dict:
     t0 = time.perf_counter()
     stdout, cpu = hystdisc(*args, log=work / "full.log")
     wall = time.perf_counter() - t0
-    res = json.loads((out / "results.json").read_text(encoding="utf-8"))
+    res = _results(out / "results.json")
     return {"stdout": stdout, "wall": wall, "cpu": cpu, "results": res}
 
 
@@ -116,8 +122,8 @@ def fold(folder: Path, work: Path, name: str, groups: dict[str, list[Path]], eff
     t0 = time.perf_counter()
     _, cpu = hystdisc(*args, log=work / f"without_{name}.log")
     wall = time.perf_counter() - t0
-    res = json.loads((out / "results.json").read_text(encoding="utf-8"))
-    row = {"test": name, "family": res["family"], "effects": _names(res.get("effects", []))}
+    res = _results(out / "results.json")
+    row = {"test": name, "family": res.family, "effects": _names(res.effects)}
     row["cpu"] = cpu
     row["wall"] = wall
     for label, extra in (("model", []), ("bingham", ["--family", "bingham"])):
@@ -161,11 +167,11 @@ def per_current(groups: dict[str, list[Path]], work: Path, family: str) -> list[
             "--quiet",
             log=work / f"current_{cur}.log",
         )
-        res = json.loads((out / "results.json").read_text(encoding="utf-8"))
+        res = _results(out / "results.json")
         rows.append(
             {
                 "current": cur.replace("x", "."),
-                "rms": res["families"][family]["rms"],
+                "rms": res.families[family].rms,
                 "runs": len(files),
             }
         )
@@ -208,28 +214,27 @@ def report(
     subset: dict | None = None,
 ) -> str:
     res = full["results"]
-    fams = res["families"]
+    fams = res.families
     lines = [
         "# UTFSM MR damper (30 driven sine tests, 0-1 A)",
         "",
         f"`hystdisc discover ../shared/data/utfsm_mr_damper --rig "
         f"data_synth/rigs/utfsm_mr_damper.toml`{'' if effects else ' --no-effects'}: "
         f"{full['wall']:.0f} s wall, {full['cpu']:.0f} s CPU (load average "
-        f"{os.getloadavg()[0]:.1f} at the end). Selected: **{res['family']}**"
-        + (f" + {', '.join(_names(res['effects']))}" if res.get("effects") else "")
+        f"{os.getloadavg()[0]:.1f} at the end). Selected: **{res.family}**"
+        + (f" + {', '.join(_names(res.effects))}" if res.effects else "")
         + ".",
         "",
         "| family | RMS force error (N) | held-out RMS (N) | BIC |",
         "|---|---:|---:|---:|",
     ]
     for name, f in fams.items():
-        star = " *" if name == res["family"] else ""
-        ho = f.get("heldout_rms")
+        star = " *" if name == res.family else ""
+        ho = f.heldout_rms
         lines.append(
-            f"| {name}{star} | {f['rms']:.1f} | {'-' if ho is None else f'{ho:.1f}'} | "
-            f"{f['bic']:.0f} |"
+            f"| {name}{star} | {f.rms:.1f} | {'-' if ho is None else f'{ho:.1f}'} | {f.bic:.0f} |"
         )
-    tried = res.get("effects_tried", [])
+    tried = res.effects_tried or []
     if tried:
         lines += [
             "",
@@ -238,22 +243,24 @@ def report(
             "| effect | accepted | RMS before (N) | RMS after (N) | note |",
             "|---|---|---:|---:|---|",
         ]
+        nan = float("nan")
         for s in tried:
+            before = s.rms_before if s.rms_before is not None else nan
+            after = s.rms_after if s.rms_after is not None else nan
             lines.append(
-                f"| {s['name']} | {'yes' if s.get('accepted') else 'no'} | "
-                f"{s.get('rms_before', float('nan')):.1f} | {s.get('rms_after', float('nan')):.1f} | "
-                f"{s.get('note', '')} |"
+                f"| {s.name} | {'yes' if s.accepted else 'no'} | {before:.1f} | {after:.1f} | "
+                f"{s.note or ''} |"
             )
-    if res.get("unexplained_text"):
-        lines += ["", f"Residual: {res['unexplained_text']}"]
+    if res.unexplained_text:
+        lines += ["", f"Residual: {res.unexplained_text}"]
     if currents:
-        fam = res["family"]
+        fam = res.family
         pooled = np.sqrt(np.mean([c["rms"] ** 2 for c in currents]))
         lines += [
             "",
             f"{fam} fitted separately at each current (no law linking its parameters to the "
             f"current; `--model {fam}` on the six files of one current): RMS force error in N. "
-            f"The joint fit above reaches {fams[fam]['rms']:.1f} N with the parameters linear "
+            f"The joint fit above reaches {fams[fam].rms:.1f} N with the parameters linear "
             "in the current.",
             "",
             "| current (A) | " + " | ".join(c["current"] for c in currents) + " | pooled |",
@@ -321,7 +328,7 @@ def main(argv=None) -> int:
     full = full_set(files, work, effects)
     print(full["stdout"], file=sys.stderr, flush=True)
     print("per-current fits", file=sys.stderr, flush=True)
-    currents = per_current(groups, work, full["results"]["family"])
+    currents = per_current(groups, work, full["results"].family)
     rows = []
     for name in list(groups)[: args.folds]:
         print(f"leave out {name}", file=sys.stderr, flush=True)

@@ -32,7 +32,7 @@ from hystdisc.errors import HystdiscError, HystdiscWarning  # noqa: E402
 _LAZY: dict[str, str] = {
     "Discovery": "hystdisc.discovery.stage1:Discovery",
     "Model": "hystdisc.models:Model",
-    "Results": "hystdisc.results.core:Results",
+    "Results": "hystdisc.results:Results",
     "TermModel": "hystdisc.models:TermModel",
     "generate": "hystdisc.simulation.synth:generate",
     "load": "hystdisc.data:load",

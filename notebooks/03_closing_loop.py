@@ -36,8 +36,8 @@ import numpy as np
 
 from hystdisc import Discovery, Model, generate
 from hystdisc.data import Dataset, Run
-from hystdisc.plotting.core import loops_figure, plot_fit, plot_residual_spectrum
-from hystdisc.report.core import FAMILY_COLORS, fit_signals, model_loops
+from hystdisc.plotting import loops_figure, plot_fit, plot_residual_spectrum
+from hystdisc.report import FAMILY_COLORS, fit_signals, model_loops
 
 FAST = os.environ.get("HYSTDISC_NOTEBOOK_FAST") == "1"
 DURATION = 2.5 if FAST else 4.0
@@ -58,31 +58,32 @@ data = generate(truth, currents=CURRENTS, duration=DURATION, noise=1e-3, seed=11
 # ## Fit the declared family; the loop runs after the fit
 #
 # `Discovery(model="dahl")` fits only Dahl and then closes the loop (`close_loop=True` is
-# the default). `results_.summary()` is the `results.json` contract: `effects` lists every
-# accepted effect with its parameters, 95 % intervals and the RMS before and after.
+# the default). `results_` is the `results.json` record, read by attribute: `effects` lists
+# every accepted effect with its parameters, 95 % intervals and the RMS before and after
+# (`to_dict()` gives an entry as it is written to `results.json`).
 
 # %%
 d = Discovery(model="dahl", heldout=False).fit(data)
-summary = d.results_.summary()
-print(json.dumps(summary["effects"], indent=1))
+res = d.results_
+print(json.dumps([e.to_dict() for e in res.effects], indent=1))
 
 # %% [markdown]
 # Every effect the loop refitted, accepted or not, is in `effects_tried`; the final
 # residual and the verdict are in `residual` and `unexplained`.
 
 # %%
-for e in summary["effects_tried"]:
-    verdict = "accepted" if e["accepted"] else "rejected"
-    print(f"{e['name']:<20} RMS {e['rms_before']:.4g} -> {e['rms_after']:.4g}  {verdict}")
-print("residual:", summary["residual"])
-print("unexplained:", summary["unexplained"])
+for e in res.effects_tried:
+    verdict = "accepted" if e.accepted else "rejected"
+    print(f"{e.name:<20} RMS {e.rms_before:.4g} -> {e.rms_after:.4g}  {verdict}")
+print("residual:", res.residual.to_dict())
+print("unexplained:", res.unexplained)
 
 # %% [markdown]
 # The readable report says the same, with the effects that were not worth a refit and
 # those that cannot apply to this model or rig.
 
 # %%
-print("\n".join(d.results_.effects_table()))
+print("\n".join(res.effects_table()))
 
 # %% [markdown]
 # ## Before and after, at 1 A
@@ -125,7 +126,7 @@ plot_residual_spectrum(before, fs, ax=ax, label="dahl", color=FAMILY_COLORS["dah
 plot_residual_spectrum(
     after, fs, ax=ax, noise_std=d.noise_std_, label="dahl + effects", color=FAMILY_COLORS["final"]
 )
-ax.set_title(f"whiteness p after: {summary['residual']['whiteness_p']:.3g}");
+ax.set_title(f"whiteness p after: {res.residual.whiteness_p:.3g}")
 
 # %% [markdown]
 # And in the loops at 1 A: the accepted term steepens the viscous slope, which is the
@@ -134,7 +135,7 @@ ax.set_title(f"whiteness p after: {summary['residual']['whiteness_p']:.3g}");
 # %%
 loops = model_loops(d, runs=[2], fits=["dahl", "final"])
 fig, axes = plt.subplots(1, 2, figsize=(11, 3.8), layout="constrained")
-loops_figure(loops, axes=axes, title="1 A: data (grey), Dahl and Dahl + effect");
+loops_figure(loops, axes=axes, title="1 A: data (grey), Dahl and Dahl + effect")
 
 # %% [markdown]
 # ## When no catalogued effect explains the residual
@@ -152,18 +153,18 @@ runs = [
 ]
 shaken = Dataset(runs, "release", "dahl data + 8 Hz vibration")
 ds = Discovery(model="dahl", heldout=False).fit(shaken)
-res = ds.results_.summary()
-print("accepted effects:", [e["name"] for e in res["effects"]])
-print("unexplained:", res["unexplained"], "-", res["unexplained_text"])
+shaken_res = ds.results_
+print("accepted effects:", [e.name for e in shaken_res.effects])
+print("unexplained:", shaken_res.unexplained, "-", shaken_res.unexplained_text)
 fig, ax = plt.subplots(figsize=(8, 3.5), layout="constrained")
 plot_residual_spectrum(
     ds.final_fit_.residuals,
     fs,
     ax=ax,
     noise_std=ds.noise_std_,
-    dominant_hz=res["residual"]["dominant_hz"],
+    dominant_hz=shaken_res.residual.dominant_hz,
     label="final residual",
-);
+)
 
 # %% [markdown]
 # ## Summary

@@ -27,7 +27,7 @@ from hystdisc.discovery.stage1 import Discovery
 from hystdisc.fitting.output_error import FamilyParametrization, FitData
 from hystdisc.fitting.predict import predict_dataset
 from hystdisc.models import EFFECTS, Model
-from hystdisc.results.core import Results
+from hystdisc.results import Results
 from hystdisc.simulation.synth import generate
 
 NOISE = 1e-3

@@ -16,7 +16,7 @@ from hystdisc import Discovery, Model
 from hystdisc.cli import main
 from hystdisc.data import load
 from hystdisc.models import FAMILIES
-from hystdisc.results.core import Results
+from hystdisc.results import Results
 from hystdisc.simulation.synth import generate, load_scenario
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -216,7 +216,7 @@ def test_ctrl_c_over_an_existing_file_keeps_it(tmp_path, capsys, monkeypatch):
 
 
 def test_ctrl_c_in_the_serializer_leaves_nothing(tmp_path, data_csv, capsys, monkeypatch):
-    from hystdisc.results.core import Results
+    from hystdisc.results import Results
 
     monkeypatch.setattr(Results, "to_json", _interrupt)
     out = tmp_path / "out"

@@ -55,7 +55,7 @@ from hystdisc.data import (
 from hystdisc.errors import HystdiscError, HystdiscWarning
 from hystdisc.models import FAMILIES, Model, TermModel
 from hystdisc.registry import get_experiment
-from hystdisc.results.core import Results
+from hystdisc.results import Results
 from hystdisc.simulation.synth import (
     SCENARIO_KEYS,
     generate,

@@ -21,7 +21,7 @@ nbclient = pytest.importorskip("nbclient")
 NOTEBOOKS = sorted((Path(__file__).resolve().parents[1] / "notebooks").glob("*.py"))
 CELL_TIMEOUT = 300  # s
 
-#: Drawing calls that belong in hystdisc.plotting.core, not in a notebook.
+#: Drawing calls that belong in hystdisc.plotting, not in a notebook.
 _DRAWING = re.compile(
     r"\.(plot|scatter|bar|barh|loglog|semilogx|semilogy|fill_between|hist|errorbar|imshow|"
     r"axhline|axvline|contour|contourf|step|stem)\("
@@ -46,7 +46,7 @@ def test_notebook_is_a_tutorial(path):
     for cell in code:
         found = _DRAWING.search(cell.source)
         assert found is None, (
-            f"drawing code in a notebook ({found.group(0)}): use hystdisc.plotting.core"
+            f"drawing code in a notebook ({found.group(0)}): use hystdisc.plotting"
         )
 
 

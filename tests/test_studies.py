@@ -13,7 +13,7 @@ from matplotlib.figure import Figure
 
 from hystdisc.cli import main
 from hystdisc.errors import HystdiscError
-from hystdisc.plotting.core import loops_figure, plot_loops, plot_runs
+from hystdisc.plotting import loops_figure, plot_loops, plot_runs
 from hystdisc.simulation.studies import loop, parameter_study, plot_study
 from hystdisc.simulation.synth import generate
 

@@ -93,7 +93,7 @@ def run(args: argparse.Namespace) -> int:
             f"{json_path}: exists; fix: pass --force to overwrite or choose another --json/--out"
         )
     if args.report:
-        from hystdisc.report.core import check_report_path
+        from hystdisc.report import check_report_path
 
         check_report_path(args.report, args.force)
     data = load_data(args, args.files)
@@ -104,7 +104,7 @@ def run(args: argparse.Namespace) -> int:
     print(res.report())
     print(f"\nwrote {json_path}")
     if args.report:
-        from hystdisc.report.core import write_report
+        from hystdisc.report import write_report
 
         path = write_report(
             disc, data, args.report, force=args.force, progress=progress_printer(args.quiet)

@@ -38,7 +38,7 @@ def run(args: argparse.Namespace) -> int:
 
     from hystdisc.data import atomic_write_text
     from hystdisc.fitting.predict import predict_dataset
-    from hystdisc.results.core import Results
+    from hystdisc.results import Results
     from hystdisc.simulation import HOLDS
 
     res = Results.load(args.results)

@@ -65,7 +65,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``hystdisc report``."""
-    from hystdisc.report.core import check_report_path, markdown_path, write_report
+    from hystdisc.report import check_report_path, markdown_path, write_report
 
     out = Path(args.output)
     markdown = not args.no_markdown

@@ -1242,7 +1242,7 @@ def close_loop(disc, dataset) -> None:
     import warnings
 
     from hystdisc.errors import HystdiscError, HystdiscWarning
-    from hystdisc.results.core import Results, term_model_to_dict
+    from hystdisc.results import Results, term_model_to_dict
 
     fit = disc.family_fits_[disc.family_]
     progress = getattr(disc, "progress", None)

@@ -721,7 +721,7 @@ class Discovery:
             return self._fit(dataset)
 
     def _fit(self, dataset: Dataset) -> Discovery:
-        from hystdisc.results.core import build_results
+        from hystdisc.results import build_results
 
         if not isinstance(dataset, Dataset):
             raise TypeError(

@@ -1,1 +1,37 @@
-"""Plotting functions: each takes ``ax=`` and returns its artists."""
+"""Plotting functions: each takes ``ax=`` (or ``axes=``) and returns its figure.
+
+Conventions (those of python-control): every function takes an ``ax=`` (or ``axes=``) to draw
+into and returns the :class:`~matplotlib.figure.Figure`; without one it opens a new pyplot
+figure. Nothing here calls ``plt.show()`` or changes ``rcParams``. One module per kind of
+figure: :mod:`~hystdisc.plotting.loops`, :mod:`~hystdisc.plotting.fits`,
+:mod:`~hystdisc.plotting.selection`, :mod:`~hystdisc.plotting.spectrum`,
+:mod:`~hystdisc.plotting.families`.
+
+Examples
+--------
+>>> import numpy as np
+>>> from hystdisc.plotting import plot_loops
+>>> t = np.linspace(0, 1, 200)
+>>> th, w = 0.3 * np.sin(2 * np.pi * t), 0.6 * np.pi * np.cos(2 * np.pi * t)
+>>> fig = plot_loops(t, th, w, 2 * np.tanh(5 * w), current=0.5)
+>>> len(fig.axes[0].lines), fig.axes[0].get_xlabel()
+(1, 'velocity [rad/s]')
+>>> import matplotlib.pyplot as plt; plt.close(fig)
+"""
+
+from hystdisc.plotting.families import plot_family_comparison
+from hystdisc.plotting.fits import plot_fit, plot_runs
+from hystdisc.plotting.loops import loops_figure, plot_loops
+from hystdisc.plotting.selection import plot_inclusion, plot_selection_path
+from hystdisc.plotting.spectrum import plot_residual_spectrum
+
+__all__ = [
+    "loops_figure",
+    "plot_family_comparison",
+    "plot_fit",
+    "plot_inclusion",
+    "plot_loops",
+    "plot_residual_spectrum",
+    "plot_runs",
+    "plot_selection_path",
+]

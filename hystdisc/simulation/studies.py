@@ -220,7 +220,7 @@ def plot_study(
     """
     import matplotlib
 
-    from hystdisc.plotting.core import loops_figure
+    from hystdisc.plotting import loops_figure
 
     colors = matplotlib.colormaps[cmap](np.linspace(0.0, 0.9, max(len(study), 1)))
     loops = []

@@ -1,0 +1,154 @@
+"""Pieces of the report's HTML and Markdown: section list, colours, CSS, cells, tables,
+embedded figures."""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+import math
+import textwrap
+from collections.abc import Sequence
+from typing import Any
+
+#: (id, title) of every section, in order; each is an ``<h2 id=...>`` of the HTML.
+SECTIONS: tuple[tuple[str, str], ...] = (
+    ("summary", "Summary"),
+    ("data", "Data"),
+    ("time-series", "Measured and simulated output"),
+    ("loops", "Hysteresis loops"),
+    ("families", "Family comparison"),
+    ("parameters", "Parameters"),
+    ("correspondence", "Term correspondence (seed, section 5)"),
+    ("selection", "Term selection (stage 1)"),
+    ("closing", "Closing the loop"),
+)
+
+#: Colours of the families in every figure (the seed's: Dahl blue, Bouc-Wen green, LuGre red).
+FAMILY_COLORS = {
+    "bingham": "tab:purple",
+    "dahl": "tab:blue",
+    "lugre": "tab:red",
+    "bouc-wen": "tab:green",
+    "bouc-wen-std": "tab:olive",
+    "discovered": "tab:brown",
+    "final": "tab:orange",
+}
+
+CSS = """
+body{font-family:system-ui,-apple-system,"Segoe UI",Helvetica,Arial,sans-serif;margin:0 auto;
+max-width:1150px;padding:1em 2em;color:#222;line-height:1.45}
+h1{font-size:1.6em;border-bottom:2px solid #444;padding-bottom:.2em}
+h2{font-size:1.3em;border-bottom:1px solid #bbb;margin-top:2em;padding-bottom:.15em}
+h3{font-size:1.05em;margin-top:1.3em}
+table{border-collapse:collapse;margin:.6em 0;font-size:.9em}
+th,td{border:1px solid #ccc;padding:.25em .6em;text-align:right;vertical-align:top}
+th{background:#f0f0f0}td.l,th.l{text-align:left}
+tr.sel td{background:#fff6d8;font-weight:600}
+pre{background:#f6f6f6;padding:.6em;overflow-x:auto;font-size:.88em}
+img{max-width:100%;height:auto;display:block;margin:.6em 0}
+.note{color:#555;font-size:.9em}.bad{color:#a00}.good{color:#070}
+nav a{margin-right:1em}code{font-size:.92em}
+"""
+
+
+# ----------------------------------------------------------------------------- helpers
+
+
+def esc(x: Any) -> str:
+    return html.escape(str(x), quote=True)
+
+
+def num(x: Any, fmt: str = ".4g") -> str:
+    if x is None:
+        return "–"
+    try:
+        v = float(x)
+    except (TypeError, ValueError):
+        return str(x)
+    if not math.isfinite(v):
+        return "–"
+    return format(v, fmt)
+
+
+def ci_text(ci: Any, fmt: str = ".4g") -> str:
+    if not ci or len(ci) != 2 or ci[0] is None or ci[1] is None:
+        return "–"
+    return f"[{num(ci[0], fmt)}, {num(ci[1], fmt)}]"
+
+
+def md_cell(x: Any) -> str:
+    """A Markdown table cell: pipes escaped, one line."""
+    return " ".join(str(x).split()).replace("|", "\\|")
+
+
+def html_table(
+    header: Sequence[str], rows: Sequence[Sequence[Any]], left: int | set[int] = 1, sel=None
+) -> str:
+    """An HTML table; ``left``: the first n columns, or a set of columns, left-aligned (text);
+    ``sel``: indices of highlighted rows."""
+    sel = set(sel or ())
+    lcols = set(range(left)) if isinstance(left, int) else set(left)
+
+    def cls(k: int) -> str:
+        return ' class="l"' if k in lcols else ""
+
+    out = ["<table><tr>"]
+    out += [f"<th{cls(k)}>{esc(h)}</th>" for k, h in enumerate(header)]
+    out.append("</tr>")
+    for i, row in enumerate(rows):
+        out.append('<tr class="sel">' if i in sel else "<tr>")
+        out += [f"<td{cls(k)}>{esc(c)}</td>" for k, c in enumerate(row)]
+        out.append("</tr>")
+    out.append("</table>")
+    return "".join(out)
+
+
+def md_table(header: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
+    lines = ["| " + " | ".join(md_cell(h) for h in header) + " |"]
+    lines.append("|" + "|".join("---" for _ in header) + "|")
+    lines += ["| " + " | ".join(md_cell(c) for c in row) + " |" for row in rows]
+    return "\n".join(lines)
+
+
+def new_figure(nrows: int, ncols: int, width: float, height: float, **kw: Any):
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(width, height), layout="constrained")
+    axes = fig.subplots(nrows, ncols, squeeze=False, **kw)
+    return fig, axes
+
+
+def png(fig, dpi: int) -> str:
+    """Render a figure to a base64 ``<img>`` and release it."""
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi)
+    fig.clear()
+    data = base64.b64encode(buf.getvalue()).decode("ascii")
+    return f'<img src="data:image/png;base64,{data}" alt="figure">'
+
+
+MAX_POINTS = 2500
+
+
+def thin(n: int) -> slice:
+    """Every k-th sample so that at most MAX_POINTS remain (a figure-only decimation)."""
+    return slice(None, None, max(1, math.ceil(n / MAX_POINTS)))
+
+
+def figure_legend(fig, ax) -> None:
+    """One legend for the whole figure, outside the axes on the right."""
+    handles, labels = ax.get_legend_handles_labels()
+    if labels:
+        labels = [textwrap.fill(lab, 34) for lab in labels]  # long discovered structures
+        fig.legend(handles, labels, loc="outside right upper", fontsize="small")
+
+
+def md_line(text: str) -> str:
+    return " ".join(str(text).split())
+
+
+def currents_text(cs) -> str:
+    from hystdisc.data import distinct_currents
+
+    return ", ".join(f"{c:g}" for c in distinct_currents(cs))

@@ -1,0 +1,214 @@
+"""Report sections: stage 1's term selection and the closing loop (effects tried, the
+residual spectrum)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from hystdisc.registry import effect_names, get_effect
+from hystdisc.report.markup import FAMILY_COLORS, ci_text, new_figure, num
+from hystdisc.report.signals import (
+    final_fit,
+    fit_label,
+    fit_sampling_rate,
+    masked_residuals,
+)
+from hystdisc.results import ResidualSummary
+
+
+class StageSections:
+    """The sections ``selection`` and ``closing`` (a mixin of
+    :class:`~hystdisc.report.document.Document`)."""
+
+    def selection(self) -> None:
+        from hystdisc.plotting import plot_inclusion, plot_selection_path
+
+        disc = self.disc
+        self.h2("selection")
+        self.p(
+            "Stage 1 (equation error): for each hysteresis shape the shape constants are "
+            "found by variable projection and the torque-side terms by sequentially "
+            "thresholded least squares (STLSQ) along a threshold path scored by BIC; the "
+            "shape with the lowest BIC is the discovered structure."
+        )
+        rows, sel = [], []
+        for i, (shape, sf) in enumerate(disc.stage1_.items()):
+            if shape == disc.discovered_shape_:
+                sel.append(i)
+            rows.append(
+                [
+                    shape + (" *" if shape == disc.discovered_shape_ else ""),
+                    ", ".join(sf.terms),
+                    ", ".join(f"{v:.4g}" for v in np.atleast_1d(sf.s)) or "–",
+                    num(sf.bic, ".1f"),
+                ]
+            )
+        self.table(
+            ["hysteresis shape", "selected torque terms", "shape constants", "BIC"],
+            rows,
+            left=2,
+            sel=sel,
+        )
+        best = disc.stage1_[disc.discovered_shape_]
+        if best.path:
+            fig, axes = new_figure(2, 1, 10, 6.2, sharex=True, height_ratios=[3, 1.4])
+            plot_selection_path(
+                best.path,
+                ax=list(axes[:, 0]),
+                title=f"STLSQ path, hysteresis shape '{best.shape}'",
+            )
+            self.figure(
+                fig,
+                "Each coefficient divided by its largest magnitude along the path; a term "
+                "leaves the model where its curve drops to 0. Dashed red: the threshold with "
+                "the lowest BIC (the selected model).",
+            )
+        if best.inclusion:
+            fig, axes = new_figure(1, 1, 7, 0.9 + 0.35 * len(best.inclusion))
+            plot_inclusion(best.inclusion, ax=axes[0, 0], title="ensemble inclusion")
+            self.figure(fig)
+            self.table(
+                ["term", "inclusion probability"],
+                [[k, num(v, ".2f")] for k, v in best.inclusion.items()],
+            )
+
+    def closing(self) -> None:
+        from hystdisc.plotting import plot_residual_spectrum
+
+        d = self.res
+        self.h2("closing")
+        ran = d.closed_loop
+        if not ran:
+            self.p("The closing loop was not run (close_loop=False or --no-effects).")
+        tried = d.effects_tried or []
+        if tried:
+            rows = []
+            for e in tried:
+                dbic = (
+                    e.bic_after - e.bic_before
+                    if e.bic_after is not None and e.bic_before is not None
+                    else None
+                )
+                verdict = "accepted" if e.accepted else "rejected"
+                if not e.accepted and e.note:
+                    verdict += f" ({e.note})"
+                rows.append(
+                    [
+                        e.name,
+                        _effect_terms(e.name),
+                        num(e.evidence, ".3g"),
+                        num(e.rms_before),
+                        num(e.rms_after),
+                        num(dbic, ".1f"),
+                        verdict,
+                    ]
+                )
+            self.table(
+                ["effect tried", "terms", "evidence", "RMS before", "RMS after", "ΔBIC", "verdict"],
+                rows,
+                left=2,
+            )
+        elif ran:
+            self.p("No catalogued effect had enough evidence to be refitted.")
+        diag = d.diagnosis or []
+        names = {e.name for e in tried}
+        rest = [c for c in (diag[0].candidates if diag else []) if c.name not in names]
+        if rest:
+            self.p(
+                "Not refitted (too little evidence): "
+                + ", ".join(f"{c.name} {num(c.evidence, '.2g')}" for c in rest)
+                + "."
+            )
+        for sk in d.effects_skipped or []:
+            self.p(f"Not applicable: {sk.name} ({sk.reason}).")
+        if d.effects:
+            self.html.append("<h3>Accepted effects</h3>")
+            self.md += ["### Accepted effects", ""]
+            rows = [
+                [
+                    e.name,
+                    ", ".join(e.terms),
+                    k,
+                    num(p.value, ".5g"),
+                    ci_text(p.ci95, ".4g"),
+                    num(e.rms_before),
+                    num(e.rms_after),
+                ]
+                for e in d.effects
+                for k, p in e.parameters.items()
+            ]
+            self.table(
+                [
+                    "effect",
+                    "terms",
+                    "parameter",
+                    "value",
+                    "95 % interval",
+                    "RMS before",
+                    "RMS after",
+                ],
+                rows,
+                left=3,
+            )
+        else:
+            self.p("No effect was accepted.")
+        res = d.residual
+        if res:
+            self.p("Final residual: " + residual_sentence(res) + ".")
+        if d.unexplained:
+            self.p("Unexplained: " + (d.unexplained_text or "structure remains"), cls="bad")
+        self._spectrum_figure(plot_residual_spectrum)
+
+    def _spectrum_figure(self, plot_residual_spectrum) -> None:
+        disc, fd, res = self.disc, self.fd, self.res.residual
+        fs = fit_sampling_rate(fd)
+        fig, axes = new_figure(1, 1, 9, 3.8)
+        ax = axes[0, 0]
+        base = disc.family_fits_[disc.family_]
+        final = final_fit(disc)
+        if final is not None:
+            plot_residual_spectrum(
+                masked_residuals(base, fd),
+                fs,
+                ax=ax,
+                label=f"{disc.family_} (before)",
+                color=FAMILY_COLORS.get(disc.family_),
+                alpha=0.6,
+            )
+        plot_residual_spectrum(
+            masked_residuals(final if final is not None else base, fd),
+            fs,
+            ax=ax,
+            noise_std=disc.noise_std_,
+            dominant_hz=res.dominant_hz if res else None,
+            label=fit_label(disc, "final") + " (after)" if final is not None else disc.family_,
+            color=FAMILY_COLORS["final" if final is not None else disc.family_],
+        )
+        ax.set_title(
+            f"residual spectrum (Welch, averaged over runs); whiteness p = "
+            f"{num(res.whiteness_p if res else None, '.3g')}",
+            fontsize="medium",
+        )
+        self.figure(
+            fig,
+            "Dashed grey: the level of white noise with the estimated measurement noise; "
+            "dotted red: the dominant frequency of a structured residual.",
+        )
+
+
+def _effect_terms(name: str) -> str:
+    """The torque terms of a catalogued effect ("–" for a name that is none)."""
+    return ", ".join(get_effect(name).terms) if name in effect_names() else "–"
+
+
+def residual_sentence(res: ResidualSummary) -> str:
+    """The final residual in one line: RMS, whiteness, dominant frequency."""
+    wp = res.whiteness_p
+    white = wp is not None and wp >= 0.01
+    out = f"RMS {num(res.rms)}"
+    if res.rms_over_noise is not None:
+        out += f" ({num(res.rms_over_noise, '.2f')}x the noise)"
+    out += f", Ljung-Box whiteness p = {num(wp, '.3g')} ({'white' if white else 'not white'})"
+    if res.dominant_hz is not None:
+        out += f", dominant frequency {num(res.dominant_hz, '.3g')} Hz"
+    return out

@@ -1,0 +1,151 @@
+"""Rendering the report and writing it (HTML and the Markdown beside it), atomically."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from pathlib import Path
+
+from hystdisc.data import Dataset, atomic_write_text
+from hystdisc.errors import HystdiscError
+from hystdisc.report.comparison import ComparisonSections
+from hystdisc.report.document import Document
+from hystdisc.report.markup import CSS, SECTIONS, esc, md_line
+from hystdisc.report.overview import OverviewSections
+from hystdisc.report.signals import check_fitted
+from hystdisc.report.stages import StageSections
+
+
+class Report(Document, OverviewSections, ComparisonSections, StageSections):
+    """The whole report: the document and every section (one method per section id)."""
+
+
+def render_report(
+    disc,
+    dataset: Dataset,
+    max_runs: int = 5,
+    dpi: int = 90,
+    progress: Callable[[str], None] | None = None,
+) -> tuple[str, str]:
+    """The report of a fitted discovery as text: ``(html, markdown)``.
+
+    Parameters
+    ----------
+    disc : Discovery
+        A fitted discovery.
+    dataset : Dataset
+        The dataset it was fitted on.
+    max_runs : int
+        Runs drawn in the per-run figures (one per current first).
+    dpi : int
+        Resolution of the embedded PNG figures.
+    progress : callable, optional
+        Called with a short message per section.
+
+    Returns
+    -------
+    html : str
+        A complete, self-contained HTML document.
+    markdown : str
+        The Markdown summary (tables only, no figures).
+    """
+    check_fitted(disc)
+    rep = Report(disc, dataset, max_runs, dpi)
+    title = f"hystdisc report — {rep.res.input}"
+    for sid, _ in SECTIONS:
+        if progress is not None:
+            progress(f"report: {dict(SECTIONS)[sid].lower()}")
+        getattr(rep, sid.replace("-", "_"))()
+    nav = "".join(f'<a href="#{esc(s)}">{esc(t)}</a>' for s, t in SECTIONS)
+    html_text = (
+        '<!DOCTYPE html>\n<html lang="en">\n<head>\n<meta charset="utf-8">\n'
+        '<meta name="viewport" content="width=device-width, initial-scale=1">\n'
+        f"<title>{esc(title)}</title>\n<style>{CSS}</style>\n</head>\n<body>\n"
+        f"<h1>{esc(title)}</h1>\n<nav>{nav}</nav>\n" + "\n".join(rep.html) + "\n</body>\n</html>\n"
+    )
+    md_text = "\n".join([f"# {md_line(title)}", *rep.md]).rstrip() + "\n"
+    return html_text, md_text
+
+
+def markdown_path(path: str | os.PathLike[str]) -> Path:
+    """The Markdown summary written beside an HTML report (``report.html`` -> ``report.md``)."""
+    return Path(path).with_suffix(".md")
+
+
+def check_report_path(
+    path: str | os.PathLike[str], force: bool = False, markdown: bool = True
+) -> None:
+    """Refuse a report path before any work: a ``.md`` name, a folder, or existing files.
+
+    Call it before a long discovery (``hystdisc report`` and ``discover --report`` do) so
+    that nothing runs for an output that cannot be written.
+
+    Raises
+    ------
+    HystdiscError
+        One line naming the path and the fix.
+
+    Examples
+    --------
+    >>> check_report_path("no/such/folder/report.html")
+    >>> check_report_path("notes.md")
+    Traceback (most recent call last):
+    ...
+    hystdisc.errors.HystdiscError: notes.md: the report is HTML (its Markdown summary goes beside it); fix: give a path ending in .html
+    """
+    target = Path(path)
+    if target.suffix.lower() == ".md":
+        raise HystdiscError(
+            f"{target}: the report is HTML (its Markdown summary goes beside it); fix: give a "
+            "path ending in .html"
+        )
+    if target.is_dir():
+        raise HystdiscError(f"{target}: is a directory; fix: choose a file name with -o")
+    if not force:
+        for p in [target, markdown_path(target)] if markdown else [target]:
+            if p.exists():
+                raise HystdiscError(
+                    f"{p}: already exists; fix: pass --force to overwrite or choose another -o"
+                )
+
+
+def write_report(
+    disc,
+    dataset: Dataset,
+    path: str | os.PathLike[str],
+    force: bool = False,
+    markdown: bool = True,
+    max_runs: int = 5,
+    dpi: int = 90,
+    progress: Callable[[str], None] | None = None,
+) -> Path:
+    """Write the HTML report of a fitted discovery, and its Markdown summary beside it.
+
+    Parameters
+    ----------
+    disc : Discovery
+        A fitted discovery.
+    dataset : Dataset
+        The dataset it was fitted on.
+    path : path-like
+        The HTML file (``.html``); the Markdown summary goes to the same name with ``.md``.
+    force : bool
+        Overwrite existing files (otherwise an existing file is a one-line HystdiscError and
+        nothing is written).
+    markdown : bool
+        Also write the Markdown summary.
+    max_runs, dpi, progress
+        See :func:`render_report`.
+
+    Returns
+    -------
+    pathlib.Path
+        The HTML file written.
+    """
+    target = Path(path)
+    check_report_path(target, force, markdown)
+    html_text, md_text = render_report(disc, dataset, max_runs, dpi, progress)
+    out = atomic_write_text(target, html_text, force=force)
+    if markdown:
+        atomic_write_text(markdown_path(target), md_text, force=force)
+    return out

@@ -1,0 +1,167 @@
+"""The one place that builds :class:`~hystdisc.results.Results` from a fitted discovery.
+
+:func:`build_results` reads the estimator's public fitted attributes only (the list is in
+its docstring) and writes every key of ``results.json``, the closing loop's included, in
+the order of schema 1 (so that the bytes of a file stay those of hystdisc 0.1 apart from
+``schema_version``).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from hystdisc import __version__
+from hystdisc.registry import get_experiment, get_family
+from hystdisc.results.records import term_model_to_dict
+from hystdisc.results.results import Results
+
+
+def _parameters(fit: Any) -> dict:
+    """``{name: {value, ci95, identifiable}}`` of an output-error fit."""
+    params = {}
+    for k, v in fit.params.items():
+        lo, hi = fit.ci95.get(k, (float("nan"), float("nan")))
+        params[k] = {"value": v, "ci95": [lo, hi], "identifiable": fit.identifiable.get(k, True)}
+    return params
+
+
+def family_entry(name: str, fit: Any, discovered_terms: dict) -> dict:
+    """The ``families`` entry of one family's fit (a plain table of the schema).
+
+    Parameters
+    ----------
+    name : str
+        Family name.
+    fit : OEFit
+        Its output-error fit.
+    discovered_terms : dict
+        ``{"torque": [...], "hysteresis": [...]}`` that stage 1 discovered.
+
+    Returns
+    -------
+    dict
+        The table of :class:`~hystdisc.results.FamilyResult`.
+    """
+    fam = get_family(name)
+    # terms the fit really uses (a current term fixed at 0 for one current is not "added")
+    tm = fit.term_model
+    fam_t = {t for t in fam.torque_terms if tm.torque.get(t, 0.0) != 0.0}
+    fam_h = {t for t in fam.hysteresis_terms if tm.hysteresis.get(t, 0.0) != 0.0}
+    dt = set(discovered_terms["torque"]) - {"theta", "1"}
+    dh = set(discovered_terms["hysteresis"])
+    return {
+        "parameters": _parameters(fit),
+        "normalization": getattr(fit.par, "normalization", "") or fam.normalization,
+        "rms": fit.rms,
+        "bic": fit.bic,
+        "heldout_rms": fit.heldout_rms,
+        "n_params": fit.n_params,
+        # hysteresis-side names are prefixed: theta_dot and |theta_dot|*z exist on both sides
+        "missing_terms": sorted(dt - fam_t) + [f"dz/dt: {t}" for t in sorted(dh - fam_h)],
+        "extra_terms": sorted(fam_t - dt) + [f"dz/dt: {t}" for t in sorted(fam_h - dh)],
+        "notes": list(fit.notes),
+        "term_model": term_model_to_dict(fit.term_model),
+        "converged": fit.success,
+    }
+
+
+def final_entry(fit: Any, family: str, effects: list[str]) -> dict:
+    """The ``final`` table: the selected family with its accepted effects."""
+    return {
+        "family": family,
+        "effects": list(effects),
+        "parameters": _parameters(fit),
+        "rms": fit.rms,
+        "bic": fit.bic,
+        "heldout_rms": fit.heldout_rms,
+        "n_params": fit.n_params,
+        "converged": fit.success,
+        "notes": list(fit.notes),
+    }
+
+
+def _no_loop_residual(disc: Any, dataset: Any) -> dict:
+    """The residual summary of the selected fit over the fitted samples (no closing loop)."""
+    from hystdisc.closing.diagnostics import residual_summary
+
+    sel = disc.family_fits_[disc.family_]
+    fs = float(np.median([r.fs for r in dataset.runs]))
+    masked = [r[m] for r, m in zip(sel.residuals, disc.fit_data_.mask, strict=True)]
+    return residual_summary(masked, fs, disc.noise_std_)
+
+
+def build_results(disc: Any, dataset: Any) -> Results:
+    """The complete ``results.json`` record of a fitted :class:`~hystdisc.Discovery`.
+
+    Reads only the estimator's public attributes: ``experiment_``, ``noise_std_``,
+    ``terms_``, ``discovered_name_``, ``discovered_shape_``, ``stage1_`` (shape -> object
+    with ``terms``, ``bic``, ``inclusion``), ``discovered_fit_``, ``family_fits_``,
+    ``family_``, ``declared_``, ``equal_fits_``, ``fit_data_`` (its ``mask``), ``loop_``
+    (the closing loop's ``LoopResult``, or None when it did not run: ``accepted``,
+    ``tried``, ``skipped``, ``diagnosis``, ``unexplained``, ``unexplained_text``,
+    ``residual``, ``fit``, ``effects``), the parameters ``input_hold`` and ``seed``, and
+    ``equations()``.
+
+    Parameters
+    ----------
+    disc : Discovery
+        A fitted discovery.
+    dataset : Dataset
+        The dataset it was fitted on (source, runs, sampling rate).
+
+    Returns
+    -------
+    Results
+    """
+    fams = {n: family_entry(n, f, disc.terms_) for n, f in disc.family_fits_.items()}
+    sel = disc.family_fits_[disc.family_]
+    dfit = disc.discovered_fit_
+    loop = disc.loop_
+    forced = get_experiment(disc.experiment_).has_input
+    data: dict[str, Any] = {
+        "version": __version__,
+        "input": dataset.source,
+        "experiment": disc.experiment_,
+        **({"input_hold": disc.input_hold} if forced else {}),
+        "noise_std": disc.noise_std_,
+        "terms": disc.terms_,
+        "discovered": {
+            "name": disc.discovered_name_,
+            "shape": disc.discovered_shape_,
+            "equations": disc.equations(),
+            "parameters": dfit.params,
+            "rms": dfit.rms,
+            "bic": dfit.bic,
+            "term_model": term_model_to_dict(dfit.term_model),
+            "stage1": {
+                k: {"terms": v.terms, "bic": v.bic, "inclusion": v.inclusion}
+                for k, v in disc.stage1_.items()
+            },
+        },
+        "family": disc.family_,
+        "declared": disc.declared_,
+        "equal_fits": disc.equal_fits_,
+        "families": fams,
+        "model": term_model_to_dict((loop.fit if loop is not None else sel).term_model),
+        "effects": loop.accepted if loop is not None else [],
+        "unexplained": loop.unexplained if loop is not None else False,
+        # the residual over the samples the fit uses (driven start-up excluded)
+        "residual": loop.residual if loop is not None else _no_loop_residual(disc, dataset),
+        "runs": [
+            {"name": r.name, "current": r.current, "samples": int(r.t.size)} for r in dataset.runs
+        ],
+        "seed": disc.seed,
+    }
+    if loop is not None:
+        data.update(
+            {
+                "effects_tried": loop.tried,
+                "effects_skipped": loop.skipped,
+                "diagnosis": loop.diagnosis,
+                "unexplained_text": loop.unexplained_text,
+                "final": final_entry(loop.fit, disc.family_, loop.effects),
+            }
+        )
+    return Results.from_dict(data)

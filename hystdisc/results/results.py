@@ -1,0 +1,304 @@
+"""The result of a discovery: the ``results.json`` contract, a fit report, notebook display.
+
+Follows lmfit's result objects: :meth:`Results.summary` returns the contract as a dict,
+:meth:`Results.to_json`/:meth:`Results.from_json` and :meth:`Results.save`/
+:meth:`Results.load` round-trip JSON, :meth:`Results.report` is a readable fit report with
+intervals, and ``_repr_html_`` renders tables in a notebook.
+
+The file carries ``schema_version`` (:data:`SCHEMA_VERSION`). Schema 1 is the file of
+hystdisc 0.1 (the same keys, no ``schema_version``); it is read as it is, and written back
+as schema 2. A file of a newer schema is refused. To change the schema: add the attribute
+to its record (with a default, documented), bump :data:`SCHEMA_VERSION`, and migrate older
+tables in :func:`migrate`.
+
+Examples
+--------
+>>> r = Results.from_dict({"version": "0", "input": "x.csv", "experiment": "release",
+...     "noise_std": 0.001, "terms": {"torque": ["z"], "hysteresis": []}, "family": "dahl",
+...     "families": {}, "model": {"torque": {"z": 1.0}}, "effects": [], "unexplained": False,
+...     "residual": {}})
+>>> r.family, r.schema_version, r.model.torque
+('dahl', 2, {'z': 1.0})
+>>> Results.from_json(r.to_json()).summary() == r.summary()
+True
+>>> list(r.summary())[:3]
+['schema_version', 'version', 'input']
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from hystdisc.errors import HystdiscError
+from hystdisc.models import TermModel
+from hystdisc.results import text
+from hystdisc.results.record import Record, SchemaError, list_of, record_of, round_json, table_of
+from hystdisc.results.records import (
+    DiagnosisRound,
+    DiscoveredResult,
+    EffectStep,
+    EffectTrial,
+    FamilyResult,
+    FinalResult,
+    ResidualSummary,
+    RunRecord,
+    SkippedEffect,
+    TermModelRecord,
+)
+
+#: The ``results.json`` schema this version writes (1: hystdisc 0.1, no ``schema_version``).
+SCHEMA_VERSION = 2
+
+_FIX_RERUN = "fix: rerun hystdisc discover --json"
+
+
+def migrate(data: dict) -> dict:
+    """A ``results.json`` table of any known schema as a table of :data:`SCHEMA_VERSION`.
+
+    Schema 1 differs only by the missing ``schema_version``.
+
+    Raises
+    ------
+    SchemaError
+        For a schema newer than this version's or one that is no integer.
+
+    Examples
+    --------
+    >>> migrate({"family": "dahl"})
+    {'schema_version': 2, 'family': 'dahl'}
+    """
+    version = data.get("schema_version", 1)
+    if isinstance(version, bool) or not isinstance(version, int) or version < 1:
+        raise SchemaError("schema_version", f"not a schema number ({version!r})")
+    if version > SCHEMA_VERSION:
+        raise SchemaError(
+            "schema_version",
+            f"{version}, newer than this hystdisc reads ({SCHEMA_VERSION}); fix: update hystdisc",
+        )
+    rest = {k: v for k, v in data.items() if k != "schema_version"}
+    return {"schema_version": SCHEMA_VERSION, **rest}
+
+
+@dataclass
+class Results(Record):
+    """The record of a discovery (``results.json``; ``Discovery.results_``).
+
+    Attributes
+    ----------
+    schema_version : int
+        The ``results.json`` schema (:data:`SCHEMA_VERSION`; older files are migrated).
+    version : str
+        The hystdisc version that wrote it.
+    input : str
+        The data source (file names).
+    experiment : str
+        ``"release"``, ``"driven"`` or ``"forced"``.
+    input_hold : str or None
+        How the forced input is held between samples (forced experiments only).
+    noise_std : float
+        Estimated measurement noise of the measured signal, data units.
+    terms : dict of str to list of str
+        Discovered ``torque`` and ``hysteresis`` terms.
+    discovered : DiscoveredResult
+        The discovered structure, its fit and stage 1 per hysteresis shape.
+    family : str
+        The selected (or declared) family.
+    declared : bool
+        True when the family was declared (``--model``) rather than selected.
+    equal_fits : list of str
+        Families within the BIC margin of the selected one.
+    families : dict of str to FamilyResult
+        The output-error fit of every family.
+    model : TermModelRecord
+        The final model in term form (selected family plus accepted effects).
+    effects : list of EffectStep
+        Effects the closing loop accepted.
+    unexplained : bool
+        True when structure remains in the residual that no catalogued effect removes.
+    residual : ResidualSummary
+        The final residual (RMS, whiteness, dominant frequency).
+    runs : list of RunRecord
+        The runs of the dataset.
+    seed : int or None
+        The seed of the stage-1 ensemble.
+    effects_tried : list of EffectTrial or None
+        Every effect refitted (None when the closing loop did not run).
+    effects_skipped : list of SkippedEffect or None
+        Catalogued effects not considered, with the reason (None: no loop).
+    diagnosis : list of DiagnosisRound or None
+        Each round's ranked candidates (None: no loop).
+    unexplained_text : str or None
+        The remaining structure in plain words.
+    final : FinalResult or None
+        The selected family with its accepted effects (None: no loop).
+    extra : dict
+        Keys this version does not know (kept on a round trip).
+    """
+
+    _nested = {
+        "discovered": record_of(DiscoveredResult),
+        "families": table_of(FamilyResult),
+        "model": record_of(TermModelRecord),
+        "effects": list_of(EffectStep),
+        "residual": record_of(ResidualSummary),
+        "runs": list_of(RunRecord),
+        "effects_tried": list_of(EffectTrial),
+        "effects_skipped": list_of(SkippedEffect),
+        "diagnosis": list_of(DiagnosisRound),
+        "final": record_of(FinalResult),
+    }
+
+    schema_version: int = SCHEMA_VERSION
+    version: str = ""
+    input: str = ""
+    experiment: str | None = None
+    input_hold: str | None = None
+    noise_std: float | None = None
+    terms: dict[str, list[str]] = field(default_factory=dict)
+    discovered: DiscoveredResult | None = None
+    family: str | None = None
+    declared: bool = False
+    equal_fits: list[str] = field(default_factory=list)
+    families: dict[str, FamilyResult] = field(default_factory=dict)
+    model: TermModelRecord | None = None
+    effects: list[EffectStep] = field(default_factory=list)
+    unexplained: bool = False
+    residual: ResidualSummary | None = None
+    runs: list[RunRecord] = field(default_factory=list)
+    seed: int | None = None
+    effects_tried: list[EffectTrial] | None = None
+    effects_skipped: list[SkippedEffect] | None = None
+    diagnosis: list[DiagnosisRound] | None = None
+    unexplained_text: str | None = None
+    final: FinalResult | None = None
+    extra: dict[str, Any] = field(default_factory=dict, repr=False)
+
+    # ----------------------------------------------------------------- JSON
+    @classmethod
+    def from_dict(cls, data: Any, where: str | None = None) -> Results:
+        """Results from a ``results.json`` table of any known schema (floats rounded).
+
+        Raises
+        ------
+        SchemaError
+            When the table does not fit the schema.
+        RecursionError
+            When it is nested too deeply to round.
+        """
+        if not isinstance(data, dict):
+            raise SchemaError("results.json", f"not a table ({type(data).__name__})")
+        return super().from_dict(migrate(round_json(data)), where or "results.json")
+
+    def summary(self) -> dict:
+        """The ``results.json`` contract as a plain dict."""
+        return self.to_dict()
+
+    def to_json(self) -> str:
+        """The ``results.json`` text (``indent=1``, a final newline)."""
+        return json.dumps(self.to_dict(), indent=1, sort_keys=False) + "\n"
+
+    @classmethod
+    def from_json(cls, text: str) -> Results:
+        """Results from ``results.json`` text (see :meth:`load` for the checks)."""
+        return cls.from_dict(json.loads(text))
+
+    def save(self, path: str | Path, force: bool = False) -> Path:
+        """Write ``results.json`` atomically (refuses to overwrite without ``force``)."""
+        from hystdisc.data import atomic_write_text
+
+        return atomic_write_text(path, self.to_json(), force=force)
+
+    @classmethod
+    def load(cls, path: str | Path) -> Results:
+        """Read a ``results.json`` of any known schema; a malformed file is a one-line
+        HystdiscError."""
+        p = Path(path)
+        try:
+            data = json.loads(p.read_text(encoding="utf-8"))
+        except FileNotFoundError:
+            raise HystdiscError(
+                f"{p}: no such file; fix: give the results.json written by discover"
+            ) from None
+        except (OSError, UnicodeDecodeError, ValueError, RecursionError) as exc:
+            # ValueError covers JSONDecodeError and over-long integer literals
+            msg = str(exc).splitlines()[0]
+            raise HystdiscError(f"{p}: not a readable results.json ({msg}); {_FIX_RERUN}") from None
+        if (
+            not isinstance(data, dict)
+            or any(k not in data for k in ("families", "model", "experiment"))
+            or not isinstance(data["families"], dict)
+            or not isinstance(data["model"], dict)
+        ):
+            raise HystdiscError(
+                f"{p}: not a hystdisc results.json (no 'families'/'model'/'experiment' keys); "
+                "fix: give the file written by hystdisc discover --json"
+            )
+        try:
+            return cls.from_dict(data)
+        except RecursionError:  # round_json() recurses once per nesting level
+            raise HystdiscError(
+                f"{p}: not a readable results.json (nested too deeply); {_FIX_RERUN}"
+            ) from None
+        except SchemaError as exc:
+            raise HystdiscError(
+                f"{p}: not a hystdisc results.json ({' '.join(str(exc).split())}); {_FIX_RERUN}"
+            ) from None
+
+    # ----------------------------------------------------------------- models
+    def term_model(self, family: str | None = None) -> TermModel:
+        """The fitted model in term form (final model with effects, or one family's fit).
+
+        Raises
+        ------
+        HystdiscError
+            When there is no such fit or its model is malformed.
+        """
+        try:
+            rec = self.model if family is None else self.families[family].term_model
+            if rec is None:
+                raise KeyError("term_model")
+            return rec.to_term_model()
+        except (KeyError, TypeError, ValueError, AttributeError, OverflowError) as exc:
+            raise HystdiscError(
+                f"results: no usable model for {family or 'the selected family'} ({exc}); fix: "
+                "rerun hystdisc discover"
+            ) from None
+
+    @property
+    def selected(self) -> FamilyResult:
+        """The fit of the selected (or declared) family."""
+        return self.families[self.family]
+
+    @property
+    def closed_loop(self) -> bool:
+        """True when the closing loop ran (its keys are present)."""
+        return self.diagnosis is not None or bool(self.effects_tried)
+
+    # ----------------------------------------------------------------- text
+    def family_table(self) -> str:
+        """Fixed-width table of every family's fit (``*``: selected)."""
+        return text.family_table(self)
+
+    def parameter_table(self, family: str | None = None) -> str:
+        """Parameters of a family (default: the selected one) with 95 % intervals."""
+        return text.parameter_table(self, family)
+
+    def effects_table(self) -> list[str]:
+        """Lines of the closing-the-loop table (empty when the loop did not run)."""
+        return text.effects_table(self)
+
+    def report(self) -> str:
+        """A readable fit report: discovered equations, family table, parameters, effects."""
+        return text.report(self)
+
+    def __str__(self) -> str:
+        return self.report()
+
+    def __repr__(self) -> str:
+        return f"<Results family={self.family!r} input={self.input!r}>"
+
+    def _repr_html_(self) -> str:
+        return text.html_summary(self)

@@ -1,0 +1,207 @@
+"""The console fit report of :class:`~hystdisc.results.Results` and its notebook HTML.
+
+Every function takes a :class:`~hystdisc.results.Results` and reads its attributes.
+"""
+
+from __future__ import annotations
+
+import html
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:  # the Results class imports this module
+    from hystdisc.results.results import Results
+
+
+def _num(x: Any, fmt: str) -> str:
+    return "-" if x is None else format(x, fmt)
+
+
+def family_table(res: Results) -> str:
+    """Fixed-width table of every family's fit (``*`` marks the selected one)."""
+    rows = [
+        f"{'family':<14}{'params':>7}{'RMS':>12}{'RMS/noise':>10}{'BIC':>14}{'held-out RMS':>14}"
+    ]
+    noise = res.noise_std or float("nan")
+    for name, f in res.families.items():
+        mark = " *" if name == res.family else ""
+        ho = f.heldout_rms
+        rows.append(
+            f"{name + mark:<14}{f.n_params:>7d}{f.rms:>12.4g}{f.rms / noise:>10.3f}"
+            f"{f.bic:>14.1f}{(f'{ho:.4g}' if ho is not None else '-'):>14}"
+        )
+    return "\n".join(rows)
+
+
+def parameter_table(res: Results, family: str | None = None) -> str:
+    """A family's parameters (default: the selected one) with their 95 % intervals."""
+    fam = family or res.family
+    f = res.families[fam]
+    rows = [
+        f"{fam} parameters ({f.normalization})",
+        f"  {'name':<10}{'value':>13}   {'95 % interval':<30}",
+    ]
+    for k, p in f.parameters.items():
+        lo, hi = p.ci95 if p.ci95 else (None, None)
+        ci = f"[{lo:.5g}, {hi:.5g}]" if lo is not None else "-"
+        flag = "" if p.identifiable else "  not identifiable"
+        rows.append(f"  {k:<10}{p.value:>13.6g}   {ci:<30}{flag}")
+    for note in f.notes:
+        rows.append(f"  note: {note}")
+    return "\n".join(rows)
+
+
+def _trial_lines(res: Results) -> list[str]:
+    tried = res.effects_tried or []
+    if not tried:
+        return []
+    out = [
+        f"  {'effect':<20}{'evidence':>9}{'(eq.)':>8}  {'RMS before -> after':<24}"
+        f"{'BIC change':>11}  verdict"
+    ]
+    for e in tried:
+        dbic = (
+            e.bic_after - e.bic_before
+            if e.bic_after is not None and e.bic_before is not None
+            else None
+        )
+        verdict = "accepted" if e.accepted else ("removed" if e.removed else "rejected")
+        if not e.accepted and e.note:
+            verdict += f" ({e.note})"
+        before, after = _num(e.rms_before, ".4g"), _num(e.rms_after, ".4g")
+        out.append(
+            f"  {e.name:<20}{_num(e.evidence, '.3f'):>9}{_num(e.evidence_eq, '.3f'):>8}  "
+            f"{before + ' -> ' + after:<24}{_num(dbic, '.1f'):>11}  {verdict}"
+        )
+    return out
+
+
+def effects_table(res: Results) -> list[str]:
+    """Lines of the closing-the-loop table: every refitted effect, then the verdict.
+
+    Returns
+    -------
+    list of str
+        Empty when the loop did not run.
+    """
+    if not res.closed_loop:
+        return []
+    out = ["", "Closing the loop (residual -> catalogued effects):", *_trial_lines(res)]
+    names = {e.name for e in res.effects_tried or []}
+    diag = res.diagnosis or []
+    rest = [c for c in (diag[0].candidates if diag else []) if c.name not in names]
+    if rest:
+        out.append(
+            "  not refitted (too little evidence): "
+            + ", ".join(f"{c.name} {_num(c.evidence, '.2g')}" for c in rest)
+        )
+    for sk in res.effects_skipped or []:
+        out.append(f"  not applicable: {sk.name} ({sk.reason})")
+    if res.effects:
+        out.append("  Accepted effects (final fit, 95 % intervals):")
+        for e in res.effects:
+            ps = ", ".join(
+                f"{k} = {p.value:.5g} [{_num(p.ci95[0], '.5g')}, {_num(p.ci95[1], '.5g')}]"
+                for k, p in e.parameters.items()
+            )
+            out.append(
+                f"    {e.name} ({', '.join(e.terms)}): {ps}; RMS "
+                f"{e.rms_before:.4g} -> {e.rms_after:.4g}"
+            )
+    else:
+        out.append("  No catalogued effect improves the model.")
+    fin = res.final
+    if fin:
+        noise = res.noise_std
+        ratio = f" ({fin.rms / noise:.2f}x the noise)" if noise else ""
+        out.append(
+            f"  Final model: {' + '.join([fin.family, *fin.effects])}, "
+            f"RMS {fin.rms:.4g}{ratio}, BIC {fin.bic:.1f}"
+        )
+    return out
+
+
+def _residual_lines(res: Results) -> list[str]:
+    r = res.residual
+    if not r:
+        return []
+    wp, ratio = r.whiteness_p, r.rms_over_noise
+    verdict = "white" if wp is not None and wp >= 0.01 else "not white"
+    rms = r.rms if r.rms is not None else float("nan")
+    out = [
+        "",
+        f"Residual: RMS {rms:.4g}"
+        + (f" ({ratio:.2f}x the noise)" if ratio is not None else "")
+        + f", Ljung-Box whiteness p = {wp if wp is None else format(wp, '.3g')} "
+        + f"({verdict})"
+        + (f", dominant {r.dominant_hz:.3g} Hz" if r.dominant_hz is not None else ""),
+    ]
+    if res.unexplained:
+        out.append(f"  Unexplained: {res.unexplained_text or 'structure remains'}")
+    return out
+
+
+def report(res: Results) -> str:
+    """A readable fit report: discovered equations, family table, parameters, effects."""
+    disc = res.discovered
+    noise = res.noise_std if res.noise_std is not None else float("nan")
+    out = [
+        f"hystdisc {res.version} — {res.input} ({res.experiment}, "
+        f"{len(res.runs)} runs, noise {noise:.3g})",
+        "",
+        f"Discovered structure: {disc.name if disc else ''}",
+        disc.equations if disc else "",
+        "",
+        "Families (output error; * selected):",
+        family_table(res),
+    ]
+    if res.equal_fits:
+        out.append(
+            f"Note: {', '.join(res.equal_fits)} fit as well as {res.family} "
+            f"(BIC within 6); the data cannot tell them apart."
+        )
+    sel = "declared" if res.declared else "selected"
+    out += ["", f"{sel.capitalize()} family: {res.family}", parameter_table(res)]
+    f = res.families[res.family]
+    if f.missing_terms or f.extra_terms:
+        out.append(
+            f"  vs discovered: lacks {f.missing_terms or 'nothing'}, "
+            f"adds {f.extra_terms or 'nothing'}"
+        )
+    out += effects_table(res)
+    out += _residual_lines(res)
+    return "\n".join(out)
+
+
+def html_summary(res: Results) -> str:
+    """The notebook display: discovered structure, family and parameter tables, effects."""
+    e = html.escape
+    rows = "".join(
+        f"<tr><td>{e(n)}{' &#9733;' if n == res.family else ''}</td><td>{f.n_params}</td>"
+        f"<td>{f.rms:.4g}</td><td>{f.bic:.1f}</td>"
+        f"<td>{'' if f.heldout_rms is None else format(f.heldout_rms, '.4g')}</td></tr>"
+        for n, f in res.families.items()
+    )
+    f = res.families[res.family]
+    prow = "".join(
+        f"<tr><td>{e(k)}</td><td>{p.value:.6g}</td><td>"
+        + (f"[{p.ci95[0]:.5g}, {p.ci95[1]:.5g}]" if p.ci95 else "")
+        + f"</td><td>{'' if p.identifiable else 'not identifiable'}</td></tr>"
+        for k, p in f.parameters.items()
+    )
+    disc = res.discovered
+    eq = e(disc.equations if disc else "").replace("\n", "<br>")
+    eff = "".join(
+        f"<li>{e(x.name)}: RMS {x.rms_before:.4g} &rarr; {x.rms_after:.4g}</li>"
+        for x in res.effects
+    )
+    eff_html = f"<b>Accepted effects</b><ul>{eff}</ul>" if eff else "<i>No effect accepted.</i>"
+    if res.unexplained:
+        eff_html += f"<br><b>Unexplained:</b> {e(str(res.unexplained_text or ''))}"
+    return (
+        f"<div><b>hystdisc</b> — {e(str(res.input))} ({e(str(res.experiment))})<br>"
+        f"<b>Discovered:</b> {e(disc.name if disc else '')}<br><code>{eq}</code>"
+        "<table><tr><th>family</th><th>params</th><th>RMS</th><th>BIC</th><th>held-out RMS</th>"
+        f"</tr>{rows}</table><b>{e(res.family)}</b> ({e(f.normalization)})"
+        f"<table><tr><th>parameter</th><th>value</th><th>95 % interval</th><th></th></tr>{prow}"
+        f"</table>{eff_html}</div>"
+    )
