@@ -74,7 +74,7 @@ d.results_  # renders as HTML tables in a notebook
 # %%
 print(d.results_.family_table())
 fig, axes = plt.subplots(1, 2, figsize=(11, 3.8), layout="constrained")
-plot_family_comparison(d.family_fits_, ax=axes, noise_std=d.noise_std_, selected=d.family_)
+plot_family_comparison(d.family_fits_, ax=axes, noise_std=d.noise_std_, selected=d.family_);
 
 # %% [markdown]
 # ## Measured against simulated at 1 A
@@ -135,7 +135,7 @@ for name in ("dahl", "lugre", "bouc-wen"):
     lp = loop(d.family_fits_[name].term_model, current=1.0, amplitude=0.2, frequency=1.5)
     lp.update(label=name, style={"color": FAMILY_COLORS[name]})
     sines.append(lp)
-loops_figure(sines, axes=axes, title="fitted models, 0.2 rad at 1.5 Hz, 1 A")
+loops_figure(sines, axes=axes, title="fitted models, 0.2 rad at 1.5 Hz, 1 A");
 
 # %% [markdown]
 # ## Parameters, intervals and identifiability

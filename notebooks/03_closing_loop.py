@@ -126,7 +126,7 @@ plot_residual_spectrum(before, fs, ax=ax, label="dahl", color=FAMILY_COLORS["dah
 plot_residual_spectrum(
     after, fs, ax=ax, noise_std=d.noise_std_, label="dahl + effects", color=FAMILY_COLORS["final"]
 )
-ax.set_title(f"whiteness p after: {res.residual.whiteness_p:.3g}")
+ax.set_title(f"whiteness p after: {res.residual.whiteness_p:.3g}");
 
 # %% [markdown]
 # And in the loops at 1 A: the accepted term steepens the viscous slope, which is the
@@ -135,7 +135,7 @@ ax.set_title(f"whiteness p after: {res.residual.whiteness_p:.3g}")
 # %%
 loops = model_loops(d, runs=[2], fits=["dahl", "final"])
 fig, axes = plt.subplots(1, 2, figsize=(11, 3.8), layout="constrained")
-loops_figure(loops, axes=axes, title="1 A: data (grey), Dahl and Dahl + effect")
+loops_figure(loops, axes=axes, title="1 A: data (grey), Dahl and Dahl + effect");
 
 # %% [markdown]
 # ## When no catalogued effect explains the residual
@@ -164,7 +164,7 @@ plot_residual_spectrum(
     noise_std=ds.noise_std_,
     dominant_hz=shaken_res.residual.dominant_hz,
     label="final residual",
-)
+);
 
 # %% [markdown]
 # ## Summary
