@@ -20,7 +20,7 @@ from hystdisc.models import Model, TermModel  # noqa: E402
 def __getattr__(name: str):
     # heavier modules (pysindy, the estimator) load on first use
     if name == "Discovery":
-        from hystdisc.discovery.stage1 import Discovery
+        from hystdisc.estimator import Discovery
 
         return Discovery
     if name == "Results":

@@ -10,8 +10,8 @@ from pathlib import Path
 import pytest
 
 from hystdisc.cli import main
-from hystdisc.discovery.stage1 import Discovery
 from hystdisc.errors import HystdiscError
+from hystdisc.estimator import Discovery
 from hystdisc.models import Model
 from hystdisc.report.core import SECTIONS, model_loops, write_report
 from hystdisc.simulation.synth import generate, write_dataset

@@ -1,9 +1,9 @@
 """Discover many datasets at once: serially, on local processes, or on a Dask cluster.
 
 ``hystdisc discover A.csv B.csv --each --jobs 2`` treats every file (or folder) as a
-dataset of its own and runs :class:`~hystdisc.discovery.stage1.Discovery` on each, in parallel
+dataset of its own and runs :class:`~hystdisc.estimator.Discovery` on each, in parallel
 over datasets. The work of one dataset is always done by the same function,
-:func:`discover_one`, in a fresh :class:`~hystdisc.discovery.stage1.Discovery` whose options are
+:func:`discover_one`, in a fresh :class:`~hystdisc.estimator.Discovery` whose options are
 passed by value, and the ``results.json`` text is produced where the fit ran; the parent
 process only writes files. So the results of a parallel run are byte-identical to those of
 the serial run (discovery is deterministic for a given ``seed``, and it limits BLAS to one
@@ -100,7 +100,7 @@ def discover_one(
     load_options : dict, optional
         Keyword arguments of :func:`hystdisc.data.io.load` (``experiment``, ``rig``, ...).
     discovery_options : dict, optional
-        Keyword arguments of :class:`~hystdisc.discovery.stage1.Discovery`.
+        Keyword arguments of :class:`~hystdisc.estimator.Discovery`.
 
     Returns
     -------
@@ -108,14 +108,16 @@ def discover_one(
         The ``results.json`` text and the report, or the error message.
     """
     from hystdisc.data.io import load
-    from hystdisc.discovery.stage1 import Discovery
+    from hystdisc.estimator import Discovery
 
     item = BatchItem(str(source))
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", HystdiscWarning)
         try:
             data = load(str(source), **dict(load_options or {}))
-            disc = Discovery(**dict(discovery_options or {})).fit(data)
+            opts = dict(discovery_options or {})
+            progress = opts.pop("progress", None)
+            disc = Discovery(**opts).fit(data, progress=progress)
         except HystdiscError as exc:
             item.error = str(exc)
         else:

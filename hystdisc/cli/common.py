@@ -80,8 +80,8 @@ def progress_printer(quiet: bool) -> Callable[[str], None] | None:
 
 def add_discovery_options(p: argparse.ArgumentParser) -> None:
     """Options of the estimator shared by ``discover`` and ``report`` (plus the data options)."""
-    from hystdisc.discovery.stage1 import ALL_FAMILIES
     from hystdisc.models import FAMILIES
+    from hystdisc.registry import family_names
 
     p.add_argument(
         "--model", help=f"declare the family instead of selecting one: {', '.join(FAMILIES)}"
@@ -89,7 +89,7 @@ def add_discovery_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--families",
         metavar="LIST",
-        help=f"families to compare, comma separated (default: {','.join(ALL_FAMILIES)})",
+        help=f"families to compare, comma separated (default: {','.join(family_names())})",
     )
     add_data_options(p)
     p.add_argument("--seed", type=int, default=0, help="seed of the resampling (default 0)")
@@ -116,7 +116,7 @@ def add_discovery_options(p: argparse.ArgumentParser) -> None:
 
 
 def discovery_options(args: argparse.Namespace) -> dict:
-    """Keyword arguments of :class:`~hystdisc.discovery.stage1.Discovery` from the shared options."""
+    """Keyword arguments of :class:`~hystdisc.estimator.Discovery` from the shared options."""
     families = None
     if args.families:
         families = [f.strip() for f in args.families.split(",") if f.strip()]

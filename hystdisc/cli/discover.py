@@ -22,8 +22,8 @@ from hystdisc.cli.common import (
     load_data,
     progress_printer,
 )
-from hystdisc.discovery.stage1 import Discovery
 from hystdisc.errors import HystdiscError
+from hystdisc.estimator import Discovery
 
 
 def add_parser(sub) -> argparse.ArgumentParser:
@@ -96,10 +96,7 @@ def run(args: argparse.Namespace) -> int:
 
         check_report_path(args.report, args.force)
     data = load_data(args, args.files)
-    disc = Discovery(
-        **discovery_options(args),
-        progress=progress_printer(args.quiet),
-    ).fit(data)
+    disc = Discovery(**discovery_options(args)).fit(data, progress=progress_printer(args.quiet))
     res = disc.results_
     json_path.parent.mkdir(parents=True, exist_ok=True)
     res.save(json_path, force=args.force)

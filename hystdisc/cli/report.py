@@ -21,8 +21,8 @@ from hystdisc.cli.common import (
     load_data,
     progress_printer,
 )
-from hystdisc.discovery.stage1 import Discovery
 from hystdisc.errors import HystdiscError
+from hystdisc.estimator import Discovery
 
 HELP = "discover the model and write an HTML model-comparison report (+ Markdown summary)"
 
@@ -75,7 +75,7 @@ def run(args: argparse.Namespace) -> int:
         raise HystdiscError(f"--max-runs {args.max_runs} is below 1; fix: give 1 or more")
     data = load_data(args, args.files)
     say = progress_printer(args.quiet)
-    disc = Discovery(**discovery_options(args), progress=say).fit(data)
+    disc = Discovery(**discovery_options(args)).fit(data, progress=say)
     path = write_report(
         disc,
         data,

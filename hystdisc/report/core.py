@@ -1,6 +1,6 @@
 """The model-comparison report: one self-contained HTML file and a Markdown summary beside it.
 
-:func:`write_report` turns a fitted :class:`~hystdisc.discovery.stage1.Discovery` into
+:func:`write_report` turns a fitted :class:`~hystdisc.estimator.Discovery` into
 ``report.html`` (figures embedded as base64 PNG, inline CSS, no script and no external
 resource, so it opens offline in any browser) and ``report.md`` (the tables, for version
 control and issue trackers). The sections, each an ``<h2>`` with the id in
@@ -36,7 +36,7 @@ to ``rcParams``) with the ``ax=`` functions of :mod:`hystdisc.plotting.core`.
 Examples
 --------
 >>> import tempfile, pathlib
->>> from hystdisc.discovery.stage1 import Discovery
+>>> from hystdisc.estimator import Discovery
 >>> from hystdisc.simulation.synth import generate
 >>> data = generate("dahl", currents=(0, 0.5, 1), duration=2.0, seed=1)
 >>> disc = Discovery(families=["dahl", "bingham"], heldout=False, close_loop=False).fit(data)
