@@ -388,6 +388,7 @@ def family_start(
     --------
     >>> from hystdisc.models import Model
     >>> from hystdisc.simulation.synth import generate
+    >>> from hystdisc.estimator import Discovery
     >>> data = generate(Model("dahl"), currents=(0, 1), duration=3, noise=1e-4, seed=1)
     >>> d = Discovery(); d.single_current_ = False
     >>> eq, _ = d._prepare(data)

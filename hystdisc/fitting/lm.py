@@ -36,16 +36,52 @@ def levenberg_marquardt(
     """Bounded Levenberg-Marquardt on the normal equations (N >> p, so the p x p Gram matrix
     is far cheaper than the SVD of the tall Jacobian that scipy's trust-region solvers use).
 
-    Steps are clipped to the bounds; Marquardt's diagonal scaling makes it scale-invariant.
-    It stops when a step lowers the cost by less than ``tol`` (relative), or before taking
-    a step that the local (damped Gauss-Newton) model predicts to do so, which saves the
-    Jacobian evaluation such a step would be followed by.
-    Returns the solution, the number of Jacobian evaluations and whether it converged (and,
-    with ``return_jac``, the Jacobian at the solution when it was evaluated there, else
-    None). ``jac0``, an approximation of the Jacobian at ``x0`` (e.g. interpolated from a
-    coarser grid), is used for the first step instead of evaluating ``jac``; every later
-    step and the convergence test after it use ``jac``. ``r0`` is ``fun(x0)`` when already
-    known; ``gram(J)`` computes ``J.T @ J`` (e.g. from a known block structure).
+    Steps are clipped to the bounds, and variables held at a bound by the gradient are left
+    out of the step; Marquardt's diagonal scaling makes it scale-invariant. It stops when a
+    step lowers the cost by less than ``tol`` (relative), or before taking a step that the
+    local (damped Gauss-Newton) model predicts to do so, which saves the Jacobian
+    evaluation such a step would be followed by.
+
+    Parameters
+    ----------
+    fun : callable
+        Residual vector of the parameters.
+    jac : callable
+        Its Jacobian (rows: residuals, columns: parameters).
+    x0 : ndarray
+        Start (clipped to the bounds).
+    lower, upper : ndarray
+        Bounds (``-inf``/``inf`` for none).
+    max_iter : int
+        Jacobian evaluations at most.
+    tol : float
+        Relative cost change at which it stops.
+    return_jac : bool
+        Also return the Jacobian at the solution.
+    jac0 : ndarray, optional
+        An approximation of the Jacobian at ``x0`` (e.g. interpolated from a coarser
+        grid), used for the first step instead of evaluating ``jac``; every later step
+        and the convergence test after it use ``jac``.
+    r0 : ndarray, optional
+        ``fun(x0)``, when already known.
+    gram : callable, optional
+        ``gram(J)`` computes ``J.T @ J`` (e.g. from a known block structure).
+
+    Returns
+    -------
+    x : ndarray
+        The solution.
+    njev : int
+        Jacobian evaluations.
+    converged : bool
+        Whether a stopping test was met (else ``max_iter`` ran out).
+    J : ndarray or None
+        With ``return_jac`` only: the Jacobian at ``x`` when it was evaluated there.
+
+    Raises
+    ------
+    HystdiscError
+        When the residual is not finite at the start.
 
     Examples
     --------

@@ -137,7 +137,42 @@ def simulate_entries(
 
 @dataclass
 class OEFit:
-    """Result of an output-error fit."""
+    """Result of an output-error fit.
+
+    Attributes
+    ----------
+    par : Parametrization
+        What was fitted (free parameters <-> term model).
+    x : ndarray
+        The free parameters at the optimum.
+    nuisance : ndarray
+        Each run's initial-state parameters, shape ``(n_runs, n_nuisance)``.
+    params : dict
+        Every reported parameter (free and derived) by name.
+    ci95, stderr : dict
+        95 % interval and standard error of each reported parameter.
+    identifiable : dict
+        False for a parameter whose interval is wider than its value, or that lies along
+        a near-singular direction of the scaled Jacobian.
+    notes : list of str
+        Identifiability and held-out notes in plain words.
+    rms, rss : float
+        Residual RMS and sum of squares over the ``n_obs`` samples that enter the fit.
+    n_obs, n_params : int
+        Residuals, and free parameters including the initial states.
+    bic : float
+        :func:`hystdisc.stats.bic` of the fit.
+    predictions, residuals : list of ndarray
+        Each run's simulated output and its residual (all samples).
+    heldout_rms : float or None
+        Leave-one-run-out RMS (None when not computed or a held-out run diverged).
+    heldout_predictions : list of ndarray or None
+        The held-out predictions.
+    nfev : int
+        Jacobian evaluations spent.
+    success : bool
+        The Levenberg-Marquardt converged.
+    """
 
     par: Parametrization
     x: np.ndarray
@@ -162,11 +197,24 @@ class OEFit:
 
     @property
     def term_model(self) -> TermModel:
+        """The fitted model in term form."""
         return self.par.terms(self.x)
 
 
 class OutputErrorFitter:
-    """Fit a :class:`Parametrization` to :class:`FitData` by output error."""
+    """Fit a :class:`Parametrization` to :class:`FitData` by output error.
+
+    Parameters
+    ----------
+    data : FitData
+        The runs.
+    par : Parametrization
+        The structure and its start.
+    max_nfev : int
+        Limit of Jacobian evaluations (Levenberg-Marquardt iterations).
+    rel_step : float
+        Relative step of the forward differences.
+    """
 
     def __init__(
         self, data: FitData, par: Parametrization, max_nfev: int = 60, rel_step: float = 1e-6
@@ -179,7 +227,8 @@ class OutputErrorFitter:
         self.state = bool(par.terms(par.x0).hysteresis)
         self.nnu = data.n_nuisance(self.state)
         self.masks = data.mask
-        self._rows = np.cumsum([0] + [int(m.sum()) for m in data.mask])
+        #: Where each run's residual rows start (and the last one ends) in the residual.
+        self.row_offsets = np.cumsum([0] + [int(m.sum()) for m in data.mask])
 
     def gram(self, J: np.ndarray) -> np.ndarray:
         """``J.T @ J`` of this fit's Jacobian from its blocks: a run's initial-state columns
@@ -192,7 +241,7 @@ class OutputErrorFitter:
         Jg = J[:, :k]
         A[:k, :k] = Jg.T @ Jg
         for r in range(self.data.n_runs):
-            rows = slice(self._rows[r], self._rows[r + 1])
+            rows = slice(self.row_offsets[r], self.row_offsets[r + 1])
             c = slice(k + r * nn, k + (r + 1) * nn)
             Jn = J[rows, c]
             B = Jg[rows].T @ Jn
@@ -244,7 +293,7 @@ class OutputErrorFitter:
             if xj[j] > self.par.upper[j]:
                 xj[j] -= 2 * steps[j]
             tms.append(self.par.terms(xj))
-        Jm = np.zeros((self._rows[-1], len(v)))
+        Jm = np.zeros((self.row_offsets[-1], len(v)))
         group: list[int] = []
         size = 0
         for r in range(R):
@@ -283,7 +332,7 @@ class OutputErrorFitter:
                 continue
             h = steps[j] if j >= self.npar or x[j] + steps[j] <= self.par.upper[j] else -steps[j]
             d = (preds[e] - base[r])[self.masks[r]] / h
-            Jm[self._rows[r] : self._rows[r + 1], j] = d
+            Jm[self.row_offsets[r] : self.row_offsets[r + 1], j] = d
 
     def fit(self, heldout: bool = True) -> OEFit:
         """Levenberg-Marquardt from the parametrization's start; intervals, BIC and (with
@@ -348,12 +397,12 @@ class OutputErrorFitter:
         """The Jacobian of ``coarse`` (a decimation of this fit's data) at every sample."""
         if not np.all(np.isfinite(Jc)):
             return None
-        out = np.empty((self._rows[-1], Jc.shape[1]))
+        out = np.empty((self.row_offsets[-1], Jc.shape[1]))
         for r in range(self.data.n_runs):
             tf = self.data.t[r][self.masks[r]]
             tc = coarse.data.t[r][coarse.masks[r]]
-            Jr = Jc[coarse._rows[r] : coarse._rows[r + 1]]
-            rows = slice(self._rows[r], self._rows[r + 1])
+            Jr = Jc[coarse.row_offsets[r] : coarse.row_offsets[r + 1]]
+            rows = slice(self.row_offsets[r], self.row_offsets[r + 1])
             if tc.size == tf.size:
                 out[rows] = Jr
             elif tc.size >= 4:
@@ -466,7 +515,7 @@ class OutputErrorFitter:
         G = self.gram(Jm) if gram is None else gram
         g = Jm.T @ res
         for r in range(R):
-            sl = slice(self._rows[r], self._rows[r + 1])
+            sl = slice(self.row_offsets[r], self.row_offsets[r + 1])
             cols = np.ones(len(v), dtype=bool)
             cols[self.npar + r * self.nnu : self.npar + (r + 1) * self.nnu] = False
             # the run's rows touch the parameters and its own initial state only

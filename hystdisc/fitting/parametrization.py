@@ -49,7 +49,7 @@ class Parametrization:
 
 
 def _clip_start(x0, lo, hi):
-    """Clip a start strictly inside the bounds (least_squares needs an interior start)."""
+    """Clip a start strictly inside the bounds (the projected Levenberg-Marquardt starts inside them)."""
     x0 = np.asarray(x0, dtype=float).copy()
     lo_in = np.where(np.isfinite(lo), lo + 1e-10 * (np.abs(lo) + 1e-3), lo)
     hi_in = np.where(np.isfinite(hi), hi - 1e-10 * (np.abs(hi) + 1e-3), hi)
