@@ -15,7 +15,7 @@ currents 0..1 A, 6 s at 1 kHz, 1 mrad noise).
     the bounds a user would give: 0.1x..10x the typical (demo) value of every parameter
     (these are the true values here: the bounds are centred on the truth, the best case for
     the swarm), ``k_s`` in 100..200, each initial angle within 10 mrad of the first sample.
-    The cost is :meth:`hystdisc.fitting.output_error.OutputErrorFitter.residuals` (the same compiled
+    The cost is :meth:`hystdisc.fitting.OutputErrorFitter.residuals` (the same compiled
     simulator and residual that discover uses, on the same prepared data, so the RMS values
     are comparable). It stops when its best RMS reaches discover's RMS x 1.01 or at the
     time budget (reported as ``>``).
@@ -46,8 +46,8 @@ from scipy.optimize import differential_evolution
 from threadpoolctl import threadpool_limits
 
 from hystdisc.data import Dataset, atomic_write_text, load
-from hystdisc.discovery.stage1 import Discovery
-from hystdisc.fitting.output_error import FamilyParametrization, FitData, OutputErrorFitter
+from hystdisc.estimator import Discovery
+from hystdisc.fitting import FamilyParametrization, FitData, OutputErrorFitter
 from hystdisc.models import RIG_PARAMS
 from hystdisc.results import Results
 

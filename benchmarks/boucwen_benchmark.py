@@ -38,7 +38,7 @@ import numpy as np
 
 from hystdisc.cli.common import progress_printer
 from hystdisc.data import Dataset, Run, load
-from hystdisc.discovery.stage1 import Discovery
+from hystdisc.estimator import Discovery
 from hystdisc.models import TermModel, get_family
 from hystdisc.simulation import simulate_forced
 
@@ -160,8 +160,7 @@ def run(folder: str | Path, families=None, close_loop: bool = True, say=None) ->
         heldout=False,
         close_loop=close_loop,
         single_current=True,
-        progress=say,
-    ).fit(train)
+    ).fit(train, progress=say)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     fit = disc.final_fit_ if getattr(disc, "final_fit_", None) is not None else disc.selected_fit_
     tm = fit.term_model

@@ -20,7 +20,7 @@ Methods (all single-process with one BLAS thread, in this one run, on the same p
   typical values, ``k_s`` 100..200, initial angles within 10 mrad of the first sample);
   stops at 1.01 x hystdisc's RMS of that family or at the time budget.
 - **multi-start LSQ**: ``scipy.optimize.least_squares`` (trf, 2-point Jacobian) on
-  :meth:`hystdisc.fitting.output_error.OutputErrorFitter.residuals` of the true family from random
+  :meth:`hystdisc.fitting.OutputErrorFitter.residuals` of the true family from random
   starts (log-uniform within the same bounds); the best start is reported.
 - **pysindy poly3**: plain pysindy on ``x = (theta, theta_dot)`` (theta_dot by smoothed
   finite differences), ``PolynomialLibrary(degree=3)`` in (theta, theta_dot, current),
@@ -60,8 +60,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_discover import machine_description, swarm_fit, user_bounds  # noqa: E402
 
 from hystdisc.data import Dataset, atomic_write_text, load  # noqa: E402
-from hystdisc.discovery.stage1 import Discovery  # noqa: E402
-from hystdisc.fitting.output_error import FamilyParametrization, FitData, OutputErrorFitter  # noqa: E402
+from hystdisc.estimator import Discovery  # noqa: E402
+from hystdisc.fitting import FamilyParametrization, FitData, OutputErrorFitter  # noqa: E402
 from hystdisc.models import Model, get_family  # noqa: E402
 from hystdisc.registry import family_names  # noqa: E402
 from hystdisc.simulation.synth import generate  # noqa: E402

@@ -189,7 +189,7 @@ def subset_validation(folder: Path, train=CI_TRAIN, test=CI_TEST, close_loop=Fal
     Bingham fit of the same run): the same as ``hystdisc discover`` + ``hystdisc predict``,
     in process."""
     from hystdisc.data import load
-    from hystdisc.discovery.stage1 import Discovery
+    from hystdisc.estimator import Discovery
 
     groups = tests_of(folder)
     files = [str(f) for k in train for f in groups[k]]

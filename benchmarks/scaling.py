@@ -44,7 +44,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_discover import machine_description  # noqa: E402
 
 from hystdisc.data import atomic_write_bytes, atomic_write_text  # noqa: E402
-from hystdisc.discovery.stage1 import Discovery  # noqa: E402
+from hystdisc.estimator import Discovery  # noqa: E402
 from hystdisc.models import Model  # noqa: E402
 from hystdisc.simulation.synth import generate  # noqa: E402
 
@@ -100,7 +100,7 @@ def _child(conn, data, options) -> None:
         rss0 = _rss_mb()
         c0 = time.process_time()
         t0 = time.perf_counter()
-        disc = Discovery(progress=progress, **options).fit(data)
+        disc = Discovery(**options).fit(data, progress=progress)
         wall = time.perf_counter() - t0
         cpu = time.process_time() - c0
         peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0 - rss0

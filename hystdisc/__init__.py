@@ -30,7 +30,7 @@ from hystdisc.errors import HystdiscError, HystdiscWarning  # noqa: E402
 
 #: Public name -> ``module:attribute``; imported on first access (module ``__getattr__``).
 _LAZY: dict[str, str] = {
-    "Discovery": "hystdisc.discovery.stage1:Discovery",
+    "Discovery": "hystdisc.estimator:Discovery",
     "Model": "hystdisc.models:Model",
     "Results": "hystdisc.results:Results",
     "TermModel": "hystdisc.models:TermModel",

@@ -15,7 +15,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from hystdisc.closing.loop import (
+from hystdisc.closing import (
     EFFECT_BIC_MARGIN,
     assess_residual,
     candidate_effects,
@@ -23,8 +23,8 @@ from hystdisc.closing.loop import (
 )
 from hystdisc.data import Dataset, Run
 from hystdisc.discovery.library import FAMILY_SHAPE
-from hystdisc.discovery.stage1 import Discovery
-from hystdisc.fitting.output_error import FamilyParametrization, FitData
+from hystdisc.estimator import Discovery
+from hystdisc.fitting import FamilyParametrization, FitData
 from hystdisc.fitting.predict import predict_dataset
 from hystdisc.models import EFFECTS, Model
 from hystdisc.results import Results
@@ -79,7 +79,7 @@ def test_missing_effect_is_found(effect):
     data, disc = _effect_case(effect)
     res = disc.results_
     # the declared family lacks the effect
-    assert effect in candidate_effects(disc.family_fits_[family], disc._fd)[0]
+    assert effect in candidate_effects(disc.family_fits_[family], disc.fit_data_)[0]
     assert disc.effects_ == [effect], res.effects_tried
     (entry,) = res.effects
     assert entry["name"] == effect
@@ -115,7 +115,7 @@ def test_seed_case_dahl_lacks_current_viscous():
     assert max(first[1:], key=lambda c: c["evidence_eq"])["evidence_eq"] < first[0]["evidence_eq"]
     # per run: the runs' parts of the predicted reduction add up to the pooled evidence
     fit = disc.family_fits_["dahl"]
-    rss = [float(r[m] @ r[m]) for r, m in zip(fit.residuals, disc._fd.mask, strict=True)]
+    rss = [float(r[m] @ r[m]) for r, m in zip(fit.residuals, disc.fit_data_.mask, strict=True)]
     per_run = first[0]["evidence_per_run"]
     pooled = sum(e * w for e, w in zip(per_run, rss, strict=True)) / sum(rss)
     assert pooled == pytest.approx(first[0]["evidence"], rel=1e-3)
@@ -236,7 +236,7 @@ def test_score_test_on_the_current_optimum():
     """At the optimum of the true structure every effect's predicted BIC change is positive."""
     data, disc = _clean_case("dahl", 500)
     fit = disc.family_fits_["dahl"]
-    fd: FitData = disc._fd
+    fd: FitData = disc.fit_data_
     scores = score_effects(fd, fit, list(EFFECTS))
     assert {s.name for s in scores} == set(EFFECTS)
     assert all(s.predicted_dbic > -EFFECT_BIC_MARGIN for s in scores)

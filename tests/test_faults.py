@@ -22,8 +22,8 @@ import pytest
 
 from hystdisc.cli import build_parser, main
 from hystdisc.data import Dataset, Run, write_csv
-from hystdisc.discovery.stage1 import Discovery
 from hystdisc.errors import HystdiscError, HystdiscWarning
+from hystdisc.estimator import Discovery
 from hystdisc.models import Model
 from hystdisc.simulation.synth import generate
 
@@ -168,7 +168,7 @@ def test_divergent_model_in_predict_is_one_line_naming_parameters(base, tmp_path
 
 def test_divergent_family_start_in_output_error_fit(base):
     """A rate that explodes z during the fit is contained (penalized), not propagated."""
-    from hystdisc.fitting.output_error import FamilyParametrization, OutputErrorFitter
+    from hystdisc.fitting import FamilyParametrization, OutputErrorFitter
 
     d = Discovery(**FAST).fit(base)
     start = {"alpha_1": 0.5, "alpha_2": 1.0, "c_1": 0.5, "c_2": 0.5, "k_s": 158.0}
@@ -177,7 +177,7 @@ def test_divergent_family_start_in_output_error_fit(base):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         try:
-            res = OutputErrorFitter(d._fd, par, max_nfev=15).fit(heldout=False)
+            res = OutputErrorFitter(d.fit_data_, par, max_nfev=15).fit(heldout=False)
         except HystdiscError as exc:
             one_line(str(exc))
             return

@@ -227,7 +227,7 @@ def test_ctrl_c_in_the_serializer_leaves_nothing(tmp_path, data_csv, capsys, mon
 
 
 def test_ctrl_c_during_the_fit_leaves_nothing(tmp_path, data_csv, capsys, monkeypatch):
-    from hystdisc.discovery.stage1 import Discovery
+    from hystdisc.estimator import Discovery
 
     monkeypatch.setattr(Discovery, "fit", _interrupt)
     out = tmp_path / "out"

@@ -8,11 +8,10 @@ from html.parser import HTMLParser
 from pathlib import Path
 
 import pytest
-from _contract_adapter import fit as contract_fit  # TEMPORARY: see its docstring
 
 from hystdisc.cli import main
-from hystdisc.discovery.stage1 import Discovery
 from hystdisc.errors import HystdiscError
+from hystdisc.estimator import Discovery
 from hystdisc.models import Model
 from hystdisc.report import SECTIONS, model_loops, write_report
 from hystdisc.simulation.synth import generate, write_dataset
@@ -72,7 +71,7 @@ def families_report(tmp_path_factory):
     """Several families compared on Dahl data (3 currents, 3 s), held-out errors on."""
     data = generate(Model("dahl"), currents=(0, 0.5, 1), duration=3.0, noise=1e-3, seed=1)
     data.source = NASTY  # every user string must arrive escaped
-    disc = contract_fit(Discovery(families=["bingham", "dahl", "lugre"], heldout=True), data)
+    disc = Discovery(families=["bingham", "dahl", "lugre"], heldout=True).fit(data)
     path = tmp_path_factory.mktemp("rep") / "report.html"
     out = write_report(disc, data, path, dpi=50, max_runs=3)
     return disc, data, out
@@ -83,7 +82,7 @@ def effect_report(tmp_path_factory):
     """Dahl declared on Dahl + current_viscous data: the closing loop accepts the effect."""
     truth = Model("dahl", effects={"current_viscous": {"c_i": 0.6}})
     data = generate(truth, currents=(0, 0.5, 1), duration=3.0, noise=1e-3, seed=3)
-    disc = contract_fit(Discovery(model="dahl", heldout=False), data)
+    disc = Discovery(model="dahl", heldout=False).fit(data)
     path = tmp_path_factory.mktemp("rep") / "effect.html"
     out = write_report(disc, data, path, dpi=50, max_runs=2)
     return disc, data, out

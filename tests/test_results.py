@@ -9,10 +9,9 @@ import re
 from pathlib import Path
 
 import pytest
-from _contract_adapter import fit as contract_fit  # TEMPORARY: see its docstring
 
-from hystdisc.discovery.stage1 import Discovery
 from hystdisc.errors import HystdiscError
+from hystdisc.estimator import Discovery
 from hystdisc.models import Model, TermModel
 from hystdisc.results import (
     RECORDS,
@@ -39,7 +38,7 @@ def _schema1(name: str) -> tuple[str, dict]:
 def small_fit():
     """A real small fit with the closing loop (Dahl, three currents, 2 s)."""
     data = generate(Model("dahl"), currents=(0, 0.5, 1), duration=2.0, noise=1e-3, seed=1)
-    disc = contract_fit(Discovery(families=["dahl", "lugre"], heldout=False), data)
+    disc = Discovery(families=["dahl", "lugre"], heldout=False).fit(data)
     return disc, data
 
 
@@ -225,7 +224,7 @@ def test_real_fit_has_todays_keys_plus_schema_version(small_fit):
 def test_real_fit_without_loop_has_no_loop_keys():
     data = generate(Model("dahl"), currents=(0, 0.5, 1), duration=2.0, noise=1e-3, seed=1)
     disc = Discovery(families=["dahl", "bingham"], heldout=True, close_loop=False)
-    res = contract_fit(disc, data).results_
+    res = disc.fit(data).results_
     _, old = _schema1("no_loop")
     assert list(res.summary()) == ["schema_version", *old]
     assert res.residual.rms == pytest.approx(res.families[res.family].rms, rel=1e-6)

@@ -117,7 +117,7 @@ def discover_one(
         warnings.simplefilter("always", HystdiscWarning)
         try:
             data = load(str(source), **dict(load_options or {}))
-            disc = fit_discovery(make_discovery(options, progress), data, progress)
+            disc = fit_discovery(make_discovery(options), data, progress)
         except HystdiscError as exc:
             item.error = str(exc)
         else:

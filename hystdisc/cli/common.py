@@ -146,9 +146,7 @@ def discovery_options(args: argparse.Namespace) -> dict:
     }
 
 
-def make_discovery(
-    options: Mapping[str, Any], progress: Callable[[str], None] | None = None
-) -> Any:
+def make_discovery(options: Mapping[str, Any]) -> Any:
     """The estimator with ``options`` (see :func:`discovery_options`), not fitted yet.
 
     This and :func:`fit_discovery` are the only places where the command-line interface
@@ -158,8 +156,6 @@ def make_discovery(
     ----------
     options : mapping
         Keyword arguments of :class:`~hystdisc.Discovery`.
-    progress : callable, optional
-        Receives the progress messages (see :func:`progress_printer`); None is silent.
 
     Returns
     -------
@@ -168,20 +164,20 @@ def make_discovery(
     """
     from hystdisc import Discovery
 
-    return Discovery(**dict(options), progress=progress)
+    return Discovery(**dict(options))
 
 
 def fit_discovery(disc: Any, data: Dataset, progress: Callable[[str], None] | None = None) -> Any:
     """Fit ``disc`` (from :func:`make_discovery`) to ``data``; returns the fitted estimator.
 
-    ``progress`` is the callable given to :func:`make_discovery` (unused here today; kept
-    so that an estimator taking it in ``fit`` is adapted in this one place).
+    ``progress`` receives the progress messages (see :func:`progress_printer`); None is
+    silent.
     """
-    return disc.fit(data)
+    return disc.fit(data, progress=progress)
 
 
 def discover(
     args: argparse.Namespace, data: Dataset, progress: Callable[[str], None] | None = None
 ) -> Any:
     """Make the estimator from the command-line options and fit it to ``data``."""
-    return fit_discovery(make_discovery(discovery_options(args), progress), data, progress)
+    return fit_discovery(make_discovery(discovery_options(args)), data, progress)

@@ -1,4 +1,4 @@
-"""Two-stage discovery of the hysteresis model: :class:`Discovery`.
+"""Stage 1 of the discovery: the sparse equation-error regression.
 
 Stage 1 (equation error, sparse): ``z`` is never measured, but given the few shape
 constants of a hysteresis candidate it is computed from the velocity record by
@@ -8,50 +8,22 @@ Nelder-Mead on the least-squares residual of the torque-side regression), the to
 terms are selected by pysindy's STLSQ along a threshold path scored by BIC, and the shapes
 are compared by BIC. The winner is the *discovered structure*.
 
-Stage 2 (output error): each family's own structure is fitted by simulating every run
-(:mod:`hystdisc.fitting.output_error`), started from a stage-1 fit of that structure; families are
-ranked by BIC (nested ties resolved towards fewer parameters) and by leave-one-run-out
-held-out RMS.
-
-Examples
---------
->>> from hystdisc.models import Model
->>> from hystdisc.simulation.synth import generate
->>> data = generate(Model("dahl"), currents=(0, 0.5, 1), duration=3, noise=1e-3, seed=1)
->>> d = Discovery(families=["dahl", "bingham"], heldout=False).fit(data)
->>> d.family_
-'dahl'
->>> bool(d.results_.families["dahl"]["rms"] < 1.2e-3)
-True
+The estimator that runs both stages is :class:`hystdisc.estimator.Discovery`.
 """
 
 from __future__ import annotations
 
-import os
-import sys
 import threading
 import warnings
-from collections.abc import Callable, Sequence
-from concurrent.futures import ThreadPoolExecutor
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
 import pysindy as ps
 from scipy.optimize import minimize
-from threadpoolctl import threadpool_limits
 
-from hystdisc.data import Dataset, distinct_currents, estimate_noise, trim_release, validate
-from hystdisc.discovery.differentiation import differentiate
-from hystdisc.discovery.library import DEFAULT_TORQUE_TERMS, FAMILY_SHAPE, SHAPES
-from hystdisc.errors import HystdiscError, HystdiscWarning
-from hystdisc.fitting.output_error import (
-    FamilyParametrization,
-    FitData,
-    OEFit,
-    OutputErrorFitter,
-    TermParametrization,
-)
+from hystdisc.discovery.library import FAMILY_SHAPE, SHAPES
 from hystdisc.models import (
     FAMILIES,
     HYSTERESIS_TERM_NAMES,
@@ -59,31 +31,13 @@ from hystdisc.models import (
     TORQUE_TERMS,
     Z_TORQUE_TERMS,
     TermModel,
-    format_equation,
     get_family,
 )
+from hystdisc.registry import family_names
 from hystdisc.simulation import concat_runs, integrate_z_flat
 
-ALL_FAMILIES = ("bingham", "dahl", "lugre", "bouc-wen", "bouc-wen-std")
-#: Default upper limit of the threads of one discovery.
-MAX_THREADS = 4
-_SAY_LOCK = threading.Lock()
 #: warnings.catch_warnings changes process-wide state: one thread at a time.
 _WARN_LOCK = threading.Lock()
-
-
-def _n_threads(n_jobs: int | None) -> int:
-    if n_jobs is not None:
-        return max(1, int(n_jobs))
-    try:
-        cpus = len(os.sched_getaffinity(0))
-    except AttributeError:  # pragma: no cover - not on Linux
-        cpus = os.cpu_count() or 1
-    return max(1, min(cpus, MAX_THREADS))
-
-
-#: Families whose BIC lies within this of the best "fit equally well".
-EQUAL_FIT_BIC = 6.0
 
 
 # ----------------------------------------------------------------------------- stage 1 data
@@ -435,6 +389,7 @@ def family_start(
     --------
     >>> from hystdisc.models import Model
     >>> from hystdisc.simulation.synth import generate
+    >>> from hystdisc.estimator import Discovery
     >>> data = generate(Model("dahl"), currents=(0, 1), duration=3, noise=1e-4, seed=1)
     >>> d = Discovery(); d.single_current_ = False
     >>> eq, _ = d._prepare(data)
@@ -475,407 +430,10 @@ def _family_terms(name: str) -> tuple[list[str], list[str]]:
 def describe_structure(torque: Sequence[str], shape: str) -> str:
     """Name a discovered structure after the family it matches (or 'modified Dahl')."""
     tset = {t for t in torque if t not in ("theta", "1")}
-    for name in ALL_FAMILIES:
+    for name in family_names():
         ft, _ = _family_terms(name)
         if FAMILY_SHAPE[name] == shape and set(ft) == tset:
             return FAMILIES[name].title if name != "lugre" else "LuGre"
     if shape == "dahl" and tset == {"theta_dot", "z", "i*z", "i*theta_dot"}:
         return "modified Dahl (Dahl + i*theta_dot)"
     return f"{SHAPES[shape].name} hysteresis with torque terms {sorted(tset)}"
-
-
-def _normalization(name: str, start: dict[str, float]) -> tuple[dict[str, float], str]:
-    """Scale of z for the output-error fit of ``name`` started at ``start``.
-
-    Bouc-Wen loops that saturate are fitted with ``z_sat = 1``; loops that never saturate
-    (``beta + gamma <= 0``) have no such scale, so z is taken in torque units
-    (``alpha_1 = 1``) and the start is rescaled to it.
-    """
-    fam = FAMILIES[name]
-    if not name.startswith("bouc-wen"):
-        return start, "z_sat"
-    zs = fam.z_sat(start["delta"], start["beta"], start["gamma"], start["n"])
-    a = start.get("alpha_1", 0.0)
-    if np.isfinite(zs) and zs > 0:
-        return start, "z_sat"
-    q = dict(start)
-    if np.isfinite(a) and a > 0:
-        n = start["n"]
-        q["delta"] = start["delta"] * a
-        q["beta"] = start["beta"] * a ** (1.0 - n)
-        q["gamma"] = start["gamma"] * a ** ((1.0 - n) if name == "bouc-wen-std" else -n)
-        q["alpha_2"] = start.get("alpha_2", 0.0) / a
-    q["alpha_1"] = 1.0
-    return q, "alpha_1"
-
-
-# ----------------------------------------------------------------------------- estimator
-
-
-class Discovery:
-    """Discover the hysteresis model of an MR damper from runs at several currents.
-
-    Parameters
-    ----------
-    experiment : {'release', 'driven', 'forced'}, optional
-        Overrides the dataset's experiment type.
-    families : sequence of str, optional
-        Families fitted and compared by output error (default: all five).
-    model : str, optional
-        Declare the family instead of selecting one (it is still compared to no others).
-    torque_terms : sequence of str
-        Torque-side library (DESIGN.md section 3).
-    shapes : sequence of str
-        Hysteresis-side candidates for stage 1.
-    threshold : float, optional
-        Fixed STLSQ threshold (on normalized columns); default: chosen by BIC on a path.
-    ensemble : bool
-        Also estimate inclusion probabilities with pysindy's ``EnsembleOptimizer``.
-    heldout : bool
-        Compute leave-one-run-out held-out RMS.
-    seed : int
-        Seed for the ensemble resampling.
-    progress : callable, optional
-        Called with short progress messages (the CLI prints them on stderr).
-    max_nfev : int
-        Limit of simulations of the output-error fit per family.
-    close_loop : bool
-        After the fit, diagnose the residual against the effect catalogue, add effects
-        that improve BIC and test the final residual for whiteness (:mod:`hystdisc.closing.loop`).
-    single_current : bool
-        Compare the families on runs at one current (a rig without a coil, such as the
-        hysteretic benchmark); the current-dependent parameters are fixed at 0. Without it,
-        one current is an error unless ``model`` declares the family.
-    input_hold : {'cubic', 'linear', 'zoh'}
-        Forced experiments: how the input is interpolated between its samples (a cubic
-        spline for a sampled smooth force; ``zoh`` for a DAC output held between samples).
-    n_jobs : int, optional
-        Threads for the independent fits (stage-1 shapes, stage-2 families); default: the
-        usable CPUs, at most :data:`MAX_THREADS`. The results do not depend on it.
-    """
-
-    def __init__(
-        self,
-        experiment: str | None = None,
-        families: Sequence[str] | None = None,
-        model: str | None = None,
-        torque_terms: Sequence[str] = DEFAULT_TORQUE_TERMS,
-        shapes: Sequence[str] = ("none", "dahl", "bouc-wen", "bouc-wen-std"),
-        threshold: float | None = None,
-        ensemble: bool = False,
-        heldout: bool = True,
-        seed: int = 0,
-        progress: Callable[[str], None] | None = None,
-        max_nfev: int = 40,
-        close_loop: bool = True,
-        input_hold: str = "cubic",
-        single_current: bool = False,
-        n_jobs: int | None = None,
-    ) -> None:
-        self.experiment = experiment
-        self.families = families
-        self.model = model
-        self.torque_terms = torque_terms
-        self.shapes = shapes
-        self.threshold = threshold
-        self.ensemble = ensemble
-        self.heldout = heldout
-        self.seed = seed
-        self.progress = progress
-        self.max_nfev = max_nfev
-        self.close_loop = close_loop
-        self.input_hold = input_hold
-        self.n_jobs = n_jobs
-        self.single_current = single_current
-
-    # -- helpers
-    def _say(self, msg: str) -> None:
-        if self.progress is not None:
-            with _SAY_LOCK:
-                self.progress(msg)
-
-    def _map(self, fn, items: list, serial: bool = False) -> list:
-        """``fn`` over ``items`` (independent fits) on up to ``n_jobs`` threads, in order.
-
-        The compiled kernels release the GIL; numpy's error state is per thread, so each
-        worker ignores floating-point warnings as the caller does.
-        """
-
-        def work(item):
-            with np.errstate(all="ignore"):
-                return fn(item)
-
-        n = _n_threads(self.n_jobs)
-        if serial or n <= 1 or len(items) <= 1:
-            return [work(x) for x in items]
-        with ThreadPoolExecutor(max_workers=min(n, len(items))) as pool:
-            return list(pool.map(work, items))
-
-    def _prepare(self, dataset: Dataset) -> tuple[EqData, FitData]:
-        exp = self.experiment or dataset.experiment
-        if exp not in ("release", "driven", "forced"):
-            raise HystdiscError(
-                f"{dataset.source}: unknown experiment type '{exp}'; fix: use release, driven or forced"
-            )
-        runs = list(dataset.runs)
-        if exp == "driven" and any(r.torque is None for r in runs):
-            raise HystdiscError(
-                f"{dataset.source}: a driven experiment needs a torque column; fix: add it or use "
-                "--experiment release"
-            )
-        if exp == "forced" and any(r.input is None for r in runs):
-            raise HystdiscError(
-                f"{dataset.source}: a forced experiment needs an input column; fix: add it or use "
-                "--experiment release"
-            )
-        sig = "torque" if exp == "driven" else "theta"
-        noises = [estimate_noise(getattr(r, sig), r.fs) for r in runs]
-        noise = float(np.median(noises))
-        theta_noise = float(np.median([estimate_noise(r.theta, r.fs) for r in runs]))
-        if exp == "release":
-            runs = [trim_release(r, theta_noise) for r in runs]
-        eq_t, eq_th, eq_w, eq_a, eq_y, rows = [], [], [], [], [], []
-        fd = FitData(
-            exp,
-            [r.name for r in runs],
-            [],
-            [],
-            np.array([r.current for r in runs]),
-            [],
-            [],
-            [],
-            [],
-            noise,
-            self.input_hold,
-        )
-        windows = []
-        for r in runs:
-            d = differentiate(r.t, r.theta, theta_noise)
-            windows.append(d.window)
-            if not np.all(np.isfinite(d.theta_dot)) or np.ptp(r.theta) == 0:
-                raise HystdiscError(
-                    f"{dataset.source}, run {r.name}: the run never moves; fix: remove the run"
-                )
-            m = np.ones(r.t.size, dtype=bool)
-            m[: d.window // 2] = False
-            m[-(d.window // 2) or None :] = False
-            if exp == "driven":
-                # forget the unknown initial z: skip until the motion has swept its range once
-                travel = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(d.theta)))])
-                m &= travel >= np.ptp(d.theta)
-                if m.sum() < 20:
-                    m[:] = True
-            eq_t.append(r.t)
-            eq_th.append(d.theta)
-            eq_w.append(d.theta_dot)
-            eq_a.append(d.theta_ddot)
-            if exp == "release":
-                eq_y.append(-d.theta_ddot)
-            elif exp == "driven":
-                eq_y.append(np.asarray(r.torque, dtype=float))
-            else:
-                eq_y.append(np.asarray(r.input, dtype=float))
-            rows.append(m)
-            fd.t.append(r.t)
-            fd.y.append(np.asarray(r.torque if exp == "driven" else r.theta, dtype=float))
-            fd.theta.append(d.theta if exp == "driven" else np.asarray(r.theta, dtype=float))
-            fd.theta_dot.append(d.theta_dot)
-            fd.u.append(np.asarray(r.input, dtype=float) if exp == "forced" else np.zeros(r.t.size))
-            fd.mask.append(m if exp == "driven" else np.ones(r.t.size, dtype=bool))
-        scale = float(np.median([np.ptp(th) / 2 for th in eq_th])) or 1.0
-        # the smoothed signals are band-limited by the window: decimate the equation-error
-        # stage (z is still integrated with sub-steps on the decimated grid)
-        q = max(1, int(np.median(windows)) // 16)
-        qs = [q] * len(runs)
-        if exp == "driven":
-            # torque is not differentiated; keep ~200 samples per cycle of each run's motion
-            qs = [max(1, int(_samples_per_cycle(w) // 200)) for w in eq_w]
-            q = max(1, int(np.median(qs)))
-        dec = lambda xs: [x[::qk] for x, qk in zip(xs, qs, strict=True)]  # noqa: E731
-        eq = EqData(
-            exp,
-            dec(eq_t),
-            dec(eq_th),
-            dec(eq_w),
-            dec(eq_a),
-            dec(eq_y),
-            fd.currents,
-            dec(rows),
-            max(1, int(np.median(windows)) // q),
-            scale,
-        )
-        return eq, fd
-
-    def _family_start(self, eq: EqData, name: str) -> dict[str, float]:
-        # the stage-1 search of this shape is the natural start (no second grid search)
-        shape = FAMILY_SHAPE[name]
-        s0 = self.stage1_[shape].s if shape in getattr(self, "stage1_", {}) else None
-        p, _ = family_start(eq, name, s0=s0, one_level=self.single_current_)
-        return p
-
-    # -- public API
-    def fit(self, dataset: Dataset) -> Discovery:
-        """Discover terms, fit the families and select one. Returns ``self``."""
-        # small dense algebra on tall matrices: extra BLAS threads only add overhead
-        with np.errstate(all="ignore"), threadpool_limits(limits=1):
-            return self._fit(dataset)
-
-    def _fit(self, dataset: Dataset) -> Discovery:
-        from hystdisc.results import build_results
-
-        if not isinstance(dataset, Dataset):
-            raise TypeError(
-                "Discovery.fit expects a hystdisc.data.Dataset (see hystdisc.load)"
-            )
-        if self.model is not None:
-            fams = [get_family(self.model).name]
-        else:
-            fams = [get_family(f).name for f in (self.families or ALL_FAMILIES)]
-        # selecting a family needs several currents, unless the user declared the family or
-        # asked for a comparison at one current (a rig without a coil, e.g. a benchmark)
-        one = self.model is not None or self.single_current
-        validate(dataset, need_currents=1 if one else 2)
-        self.single_current_ = len(distinct_currents(dataset.currents)) < 2
-        if self.single_current_:
-            warnings.warn(
-                f"{dataset.source}: all runs share one current; the current-dependent "
-                "parameters are fixed at 0 and the i* terms left out of the library",
-                HystdiscWarning,
-                stacklevel=2,
-            )
-        self._say("preparing data (noise, derivatives)")
-        eq, fd = self._prepare(dataset)
-        self.experiment_ = eq.experiment
-        self.noise_std_ = fd.noise_std
-        self.n_runs_ = fd.n_runs
-        self.currents_ = fd.currents
-        self.window_ = eq.window
-        self._eq, self._fd = eq, fd
-
-        # stage 1
-        terms = list(self.torque_terms)
-        if eq.experiment == "driven" and "theta" not in terms:
-            terms = ["theta", *terms]
-        if self.single_current_:
-            terms = [t for t in terms if not t.startswith("i")]
-        # the lazily built arrays the workers share are built before they start
-        eq.row_index  # noqa: B018
-        fd.bulk()
-        if eq.experiment == "forced" and fd.hold == "cubic":
-            fd.input_slopes()
-
-        def shape_fit(shape):
-            self._say(f"stage 1: sparse regression with hysteresis shape '{shape}'")
-            return fit_shape(eq, shape, terms, self.threshold, self.ensemble, self.seed)
-
-        # the ensemble draws from numpy's global generator: one shape after the other
-        fits = self._map(shape_fit, list(self.shapes), serial=self.ensemble)
-        self.stage1_ = dict(zip(self.shapes, fits, strict=True))
-        best = min(self.stage1_.values(), key=lambda f: f.bic)
-        self.discovered_shape_ = best.shape
-        self.discovered_ = best.term_model()
-        self.terms_ = {
-            "torque": [t for t in best.terms if not (t == "theta" and eq.experiment != "driven")],
-            "hysteresis": list(SHAPES[best.shape].terms),
-        }
-        self.discovered_name_ = describe_structure(best.terms, best.shape)
-
-        # stage 2: each family by output error (and the discovered structure when it is not
-        # one of them), each fit on its own
-        same = [
-            n
-            for n in fams
-            if FAMILY_SHAPE[n] == best.shape
-            and set(FAMILIES[n].torque_terms) == set(best.terms) - {"theta"}
-        ]
-
-        def family_fit(k):
-            if k == len(fams):
-                self._say("stage 2: output-error fit of the discovered structure")
-                tpar = TermParametrization(
-                    best.terms, best.shape, best.coefs, best.s, best.J, eq.experiment
-                )
-                return OutputErrorFitter(fd, tpar, max_nfev=self.max_nfev).fit(heldout=False)
-            name = fams[k]
-            self._say(f"stage 2: output-error fit of {name} ({k + 1}/{len(fams)})")
-            start = self._family_start(eq, name)
-            fixed = {p: 0.0 for p in FAMILIES[name].current_params} if self.single_current_ else {}
-            start, norm = _normalization(name, start)
-            par = FamilyParametrization(name, eq.experiment, start, fixed=fixed, normalization=norm)
-            fitter = OutputErrorFitter(fd, par, max_nfev=self.max_nfev)
-            return fitter.fit(heldout=self.heldout)
-
-        fits = self._map(family_fit, list(range(len(fams) + (0 if same else 1))))
-        self.family_fits_: dict[str, OEFit] = dict(zip(fams, fits, strict=False))
-        self.discovered_fit_ = self.family_fits_[same[0]] if same else fits[-1]
-
-        # selection: lowest BIC; within EQUAL_FIT_BIC, fewest parameters wins
-        bics = {n: f.bic for n, f in self.family_fits_.items()}
-        bmin = min(bics.values())
-        close = [n for n, b in bics.items() if b - bmin < 2.0]
-        self.family_ = min(close, key=lambda n: (self.family_fits_[n].n_params, bics[n]))
-        self.equal_fits_ = sorted(
-            n
-            for n, b in bics.items()
-            if b - bics[self.family_] < EQUAL_FIT_BIC and n != self.family_
-        )
-        self.declared_ = self.model is not None
-        self.results_ = build_results(self, dataset)
-        if self.close_loop:
-            from hystdisc.closing.loop import close_loop
-
-            self._say("closing the loop: residual -> catalogued effects")
-            close_loop(self, dataset)
-        return self
-
-    def _check_fitted(self):
-        if not hasattr(self, "results_"):
-            raise HystdiscError("this Discovery is not fitted yet; fix: call fit(dataset) first")
-
-    @property
-    def selected_fit_(self) -> OEFit:
-        self._check_fitted()
-        return self.family_fits_[self.family_]
-
-    def predict(self, dataset: Dataset, family: str | None = None) -> list[np.ndarray]:
-        """Simulate the fitted model on the runs of ``dataset``.
-
-        Without ``family``: the selected family with the effects the closing loop accepted.
-        """
-        self._check_fitted()
-        from hystdisc.fitting.predict import predict_dataset
-
-        if family is None and getattr(self, "final_fit_", None) is not None:
-            fit = self.final_fit_  # the selected family with its accepted effects
-        else:
-            fit = self.family_fits_[family or self.family_]
-        return predict_dataset(fit.term_model, dataset, self.experiment_, self.input_hold)
-
-    def score(self, dataset: Dataset) -> float:
-        """Coefficient of determination R^2 of the simulated output on ``dataset``."""
-        preds = self.predict(dataset)
-        meas = [r.torque if self.experiment_ == "driven" else r.theta for r in dataset.runs]
-        y = np.concatenate(meas)
-        p = np.concatenate(preds)
-        return float(1.0 - np.sum((y - p) ** 2) / np.sum((y - y.mean()) ** 2))
-
-    def equations(self) -> str:
-        """pysindy-style print of the discovered equations."""
-        if not hasattr(self, "discovered_fit_"):
-            self._check_fitted()
-        tm = self.discovered_fit_.term_model
-        lines = [format_equation("T", tm.torque)]
-        if tm.hysteresis:
-            lines.append(tm.equations().splitlines()[1])
-        if self.experiment_ == "forced":
-            lines.insert(0, f"J = {tm.J:.4g}")
-        return "\n".join(lines)
-
-    def print(self, file=None) -> None:
-        """Print the discovered equations (like ``pysindy.SINDy.print``)."""
-        print(self.equations(), file=file or sys.stdout)
-
-    def _repr_html_(self) -> str:
-        if not hasattr(self, "results_"):
-            return "<p>Discovery (not fitted)</p>"
-        return self.results_._repr_html_()

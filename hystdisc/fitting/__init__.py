@@ -1,1 +1,30 @@
-"""Stage 2: output-error fits of a model to the measured signal, intervals and prediction."""
+"""Stage 2: output-error fits of a structure over all runs jointly.
+
+:class:`FitData` holds the runs as the fit sees them; a :class:`Parametrization`
+(:class:`FamilyParametrization`, :class:`TermParametrization`) maps free parameters to a
+term model; :class:`OutputErrorFitter` fits it with :func:`levenberg_marquardt` and returns
+an :class:`OEFit` (parameters, 95 % intervals, identifiability, BIC, held-out error);
+:func:`predict_dataset` simulates a fitted model on new runs.
+"""
+
+from hystdisc.fitting.data import FitData
+from hystdisc.fitting.lm import levenberg_marquardt
+from hystdisc.fitting.output_error import OEFit, OutputErrorFitter, simulate_entries
+from hystdisc.fitting.parametrization import (
+    FamilyParametrization,
+    Parametrization,
+    TermParametrization,
+)
+from hystdisc.fitting.predict import predict_dataset
+
+__all__ = [
+    "FamilyParametrization",
+    "FitData",
+    "OEFit",
+    "OutputErrorFitter",
+    "Parametrization",
+    "TermParametrization",
+    "levenberg_marquardt",
+    "predict_dataset",
+    "simulate_entries",
+]

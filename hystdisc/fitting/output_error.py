@@ -2,8 +2,9 @@
 
 Every run is simulated with the candidate model (release from its own initial angle,
 estimated as a nuisance parameter; forced from its input; driven from its imposed motion)
-and the measured signal is fitted by ``scipy.optimize.least_squares``. The Jacobian is
-computed by forward differences, all columns in one batched, compiled simulation call
+and the measured signal is fitted by the package's own bounded Levenberg-Marquardt
+(:func:`~hystdisc.fitting.lm.levenberg_marquardt`, on the normal equations). The Jacobian
+is computed by forward differences, all columns in one batched, compiled simulation call
 (a run's nuisance parameters only touch that run, so only that run is re-simulated).
 
 At the optimum the Jacobian gives 95 % intervals (``s^2 (J^T J)^-1``), an identifiability
@@ -20,16 +21,13 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from hystdisc.errors import HystdiscError
-from hystdisc.models import (
-    EFFECTS,
-    RIG_PARAMS,
-    Family,
-    Param,
-    TermModel,
-    get_family,
-)
+from hystdisc.fitting.data import FitData
+from hystdisc.fitting.lm import levenberg_marquardt
+from hystdisc.fitting.parametrization import Parametrization
+from hystdisc.models import TermModel
 from hystdisc.models.compiled import N_BASE, base_coefficients
-from hystdisc.simulation import driven_shared, input_slopes, mech_batch
+from hystdisc.simulation import driven_shared, mech_batch
+from hystdisc.stats import bic as _bic
 
 Z95 = 1.959963984540054
 #: Sub-step ratio used while fitting (errors ~1e-6 of the signal, far below any noise).
@@ -37,11 +35,6 @@ FIT_RATIO = 0.4
 #: Sub-step cap while fitting: a candidate with a near-discontinuous state (a Dahl rate
 #: fitted to Bingham data) is not worth resolving exactly inside the optimizer.
 FIT_MAX_SUB = 8
-#: Samples per cycle of the motion kept by the bulk of an output-error fit (the fit then
-#: finishes on the full data, so the optimum, intervals and BIC refer to every sample).
-BULK_PER_CYCLE = 100
-#: A run is decimated for the bulk only if it keeps at least this many samples.
-BULK_MIN_SAMPLES = 200
 #: Levenberg-Marquardt iterations on the full data after the bulk fit, at least.
 POLISH_MIN_ITER = 2
 #: Samples simulated per compiled call of a Jacobian (bounds its scratch memory).
@@ -50,152 +43,6 @@ JAC_CHUNK_SAMPLES = 2_000_000
 BULK_MIN_GAIN = 2.0
 #: Relative cost change at which the bulk fit hands over to the full data.
 BULK_TOL = 1e-5
-#: The predicted-gain stop of the Levenberg-Marquardt applies while the damping is below
-#: this (a heavily damped step predicts little because it is short, not because the
-#: optimum is reached).
-PRED_MAX_LAMBDA = 1e-2
-
-
-def _samples_per_cycle(w: np.ndarray) -> float:
-    """Samples per cycle of a signal oscillating about zero (from its zero crossings)."""
-    sgn = np.signbit(np.asarray(w))
-    crossings = np.count_nonzero(sgn[1:] != sgn[:-1])
-    return 2.0 * sgn.size / max(crossings, 1)
-
-
-# ----------------------------------------------------------------------------- data
-
-
-@dataclass
-class FitData:
-    """Runs prepared for the output-error fit (all arrays per run)."""
-
-    experiment: str
-    names: list[str]
-    t: list[np.ndarray]
-    y: list[np.ndarray]  # measured output: theta (release/forced) or torque (driven)
-    currents: np.ndarray
-    theta: list[np.ndarray]  # driven: imposed motion (smoothed); else measured theta
-    theta_dot: list[np.ndarray]  # driven: imposed velocity; else smoothed estimate
-    u: list[np.ndarray]  # forced: input; else zeros
-    mask: list[np.ndarray]  # samples that enter the residual
-    noise_std: float = 0.0
-    hold: str = "cubic"
-    du: list[np.ndarray] | None = None  # forced: spline slopes of the input (cached)
-    steps: list[int] | None = None  # decimation factor of each run (sub-step caps scale)
-    _bulk: FitData | None = field(default=None, init=False, repr=False, compare=False)
-    _bulk_done: bool = field(default=False, init=False, repr=False, compare=False)
-
-    def input_slopes(self) -> list[np.ndarray]:
-        """Per-run slopes of the input's cubic spline (computed once)."""
-        if self.du is None:
-            self.du = [
-                input_slopes(t, u, np.array([0, t.size]))
-                for t, u in zip(self.t, self.u, strict=True)
-            ]
-        return self.du
-
-    @property
-    def n_runs(self) -> int:
-        return len(self.t)
-
-    def run_steps(self) -> list[int]:
-        """Each run's decimation factor against the data it was measured as (1: all)."""
-        return list(self.steps) if self.steps is not None else [1] * self.n_runs
-
-    def bulk_factors(self) -> list[int]:
-        """Per-run decimation factor of the bulk of an output-error fit.
-
-        Every run keeps about :data:`BULK_PER_CYCLE` samples per cycle of its motion (and of
-        a forced run's input); the simulator's sub-steps keep the integration as accurate
-        as on the full grid.
-        """
-        out = []
-        for k in range(self.n_runs):
-            per = _samples_per_cycle(self.theta_dot[k])
-            if self.experiment == "forced":
-                per = min(per, _samples_per_cycle(self.u[k] - np.mean(self.u[k])))
-            q = int(per // BULK_PER_CYCLE)
-            # a short run or one whose residual rows would thin out is kept as it is
-            if self.t[k].size // max(q, 1) < BULK_MIN_SAMPLES:
-                q = 1
-            out.append(max(q, 1))
-        return out
-
-    def bulk(self) -> FitData | None:
-        """The data decimated by :meth:`bulk_factors` (computed once), or None when that
-        would not save at least half of the samples."""
-        if not self._bulk_done:
-            self._bulk_done = True
-            qs = self.bulk_factors()
-            n_full = sum(t.size for t in self.t)
-            n_bulk = sum(-(-t.size // q) for t, q in zip(self.t, qs, strict=True))
-            if n_bulk <= n_full / 2:
-                self._bulk = self.decimated(qs)
-        return self._bulk
-
-    def decimated(self, qs: list[int]) -> FitData:
-        """Every ``qs[k]``-th sample of run ``k`` (a forced run keeps its full-rate spline
-        slopes at the samples kept)."""
-        dec = lambda xs: [x[::q] for x, q in zip(xs, qs, strict=True)]  # noqa: E731
-        du = None
-        if self.experiment == "forced" and self.hold == "cubic":
-            du = dec(self.input_slopes())
-        return FitData(
-            self.experiment,
-            list(self.names),
-            dec(self.t),
-            dec(self.y),
-            self.currents,
-            dec(self.theta),
-            dec(self.theta_dot),
-            dec(self.u),
-            dec(self.mask),
-            self.noise_std,
-            self.hold,
-            du,
-            [q * s for q, s in zip(qs, self.run_steps(), strict=True)],
-        )
-
-    def subset(self, idx: list[int]) -> FitData:
-        pick = lambda xs: [xs[k] for k in idx]  # noqa: E731
-        return FitData(
-            self.experiment,
-            pick(self.names),
-            pick(self.t),
-            pick(self.y),
-            self.currents[idx],
-            pick(self.theta),
-            pick(self.theta_dot),
-            pick(self.u),
-            pick(self.mask),
-            self.noise_std,
-            self.hold,
-            None if self.du is None else pick(self.du),
-            None if self.steps is None else pick(self.steps),
-        )
-
-    def _per_run(self, state: bool) -> list[str]:
-        if self.experiment == "forced":
-            # a forced record may start mid-motion: the whole initial state is unknown
-            return ["theta0", "theta_dot0", "z0"] if state else ["theta0", "theta_dot0"]
-        return {"release": ["theta0"], "driven": []}[self.experiment]
-
-    def n_nuisance(self, state: bool = False) -> int:
-        """Nuisance parameters per run (initial state; ``state``: the model has a z)."""
-        return len(self._per_run(state))
-
-    def nuisance_names(self, state: bool = False) -> list[str]:
-        return [f"{p}[{n}]" for n in self.names for p in self._per_run(state)]
-
-    def nuisance_start(self, state: bool = False) -> np.ndarray:
-        out = []
-        for k in range(self.n_runs):
-            if self.experiment == "release":
-                out.append(self.theta[k][0])
-            elif self.experiment == "forced":
-                out.extend([self.theta[k][0], self.theta_dot[k][0]] + ([0.0] if state else []))
-        return np.array(out, dtype=float)
 
 
 def simulate_entries(
@@ -213,6 +60,7 @@ def simulate_entries(
     ``work_out`` the integration work of each entry (see :func:`~hystdisc.simulation.mech_batch`).
     """
     ne = len(runs)
+    exp = data.exp
     steps = data.run_steps()
     # the sub-step cap is per measured sample interval: a decimated run gets q times more
     max_sub = np.array([FIT_MAX_SUB * steps[r] for r in runs], dtype=np.int64)
@@ -224,13 +72,13 @@ def simulate_entries(
         coef[e] = base_coefficients(tm, data.currents[r])
         b[e] = tm.hysteresis_vector()
         n[e] = tm.n
-        J[e] = tm.J if data.experiment == "forced" else 1.0
+        J[e] = tm.J if exp.inertia_identifiable else 1.0
     offsets = np.zeros(ne + 1, dtype=np.int64)
     offsets[1:] = np.cumsum([len(data.t[r]) for r in runs])
     work = np.zeros(ne, dtype=np.int64)
     t = np.concatenate([data.t[r] for r in runs])
     with np.errstate(all="ignore"):
-        if data.experiment == "driven":
+        if exp.motion_imposed:
             th = np.concatenate([data.theta[r] for r in runs])
             w = np.concatenate([data.theta_dot[r] for r in runs])
             out, _, status = driven_shared(
@@ -250,7 +98,7 @@ def simulate_entries(
         else:
             u = np.concatenate([data.u[r] for r in runs])
             du = None
-            if data.experiment == "forced" and data.hold == "cubic":
+            if exp.has_input and data.hold == "cubic":
                 slopes = data.input_slopes()
                 du = np.concatenate([slopes[r] for r in runs])
             th0 = np.array([v[0] for v in nuis])
@@ -288,278 +136,44 @@ def simulate_entries(
     return res
 
 
-# ----------------------------------------------------------------------------- parametrizations
-
-
-class Parametrization:
-    """Free parameters <-> term model. Subclasses define names, start and bounds."""
-
-    names: list[str]
-    x0: np.ndarray
-    lower: np.ndarray
-    upper: np.ndarray
-    normalization: str = ""
-
-    def terms(self, x: np.ndarray) -> TermModel:  # pragma: no cover - abstract
-        raise NotImplementedError
-
-    def params(self, x: np.ndarray) -> dict[str, float]:
-        """Every reported parameter (free and derived) for the free vector ``x``."""
-        return dict(zip(self.names, map(float, x), strict=True))
-
-
-def _clip_start(x0, lo, hi):
-    """Clip a start strictly inside the bounds (least_squares needs an interior start)."""
-    x0 = np.asarray(x0, dtype=float).copy()
-    lo_in = np.where(np.isfinite(lo), lo + 1e-10 * (np.abs(lo) + 1e-3), lo)
-    hi_in = np.where(np.isfinite(hi), hi - 1e-10 * (np.abs(hi) + 1e-3), hi)
-    return np.clip(x0, lo_in, hi_in)
-
-
-class FamilyParametrization(Parametrization):
-    """A family's own parameters (+ rig ``k_s``/``J`` + effect parameters).
-
-    Bouc-Wen families are normalized to ``z_sat = 1`` (``delta = beta + gamma``, so
-    ``delta`` is derived); the other families carry their own scale.
-    """
-
-    def __init__(
-        self,
-        family: str | Family,
-        experiment: str,
-        start: dict[str, float],
-        effects: tuple[str, ...] = (),
-        fixed: dict[str, float] | None = None,
-        normalization: str = "z_sat",
-    ) -> None:
-        self.family = get_family(family) if isinstance(family, str) else family
-        self.fixed = dict(fixed or {})
-        bw = self.family.name.startswith("bouc-wen")
-        if normalization not in ("z_sat", "alpha_1"):
-            raise HystdiscError(
-                f"unknown normalization '{normalization}'; fix: use z_sat or alpha_1"
-            )
-        if bw and normalization == "alpha_1":
-            # z in torque units (alpha_1 = 1), delta free: for loops that never saturate
-            self.fixed.setdefault("alpha_1", 1.0)
-        self.experiment = experiment
-        self.effects = tuple(effects)
-        self.norm = normalization if bw else "z_sat"
-        self.derived = ["delta"] if bw and normalization == "z_sat" else []
-        self.normalization = (
-            "alpha_1 = 1 (z in torque units)"
-            if bw and normalization == "alpha_1"
-            else self.family.normalization
-        )
-        specs: list[Param] = [
-            p for p in self.family.params if p.name not in self.derived and p.name not in self.fixed
-        ]
-        specs.append(RIG_PARAMS[0])  # k_s
-        if experiment == "forced":
-            specs.append(RIG_PARAMS[1])  # J
-        for e in self.effects:
-            specs.extend(EFFECTS[e].params)
-        self.specs = specs
-        self.names = [p.name for p in specs]
-        self.lower = np.array([p.lower for p in specs], dtype=float)
-        self.upper = np.array([p.upper for p in specs], dtype=float)
-        x0 = [start.get(p.name, p.default) for p in specs]
-        self.x0 = _clip_start(x0, self.lower, self.upper)
-
-    def like(self, start: dict[str, float], effects: tuple[str, ...]) -> FamilyParametrization:
-        """The same family, normalization and fixed parameters with other ``effects``."""
-        return FamilyParametrization(
-            self.family, self.experiment, start, effects, self.fixed, self.norm
-        )
-
-    def params(self, x):
-        p = dict(zip(self.names, map(float, x), strict=True))
-        p.update(self.fixed)
-        if self.derived:
-            p["delta"] = p["beta"] + p["gamma"]
-        return p
-
-    def terms(self, x):
-        p = self.params(x)
-        tm = self.family.to_terms(p)
-        tm.torque["theta"] = tm.torque.get("theta", 0.0) + p["k_s"]
-        tm.J = p.get("J", 1.0)
-        for e in self.effects:
-            for k, v in EFFECTS[e].to_torque(p, p["k_s"]).items():
-                tm.torque[k] = tm.torque.get(k, 0.0) + v
-        return tm
-
-
-class TermParametrization(Parametrization):
-    """Free coefficients of chosen torque terms plus the shape constants of a hysteresis shape."""
-
-    def __init__(
-        self,
-        torque_terms,
-        shape,
-        start_coefs: dict[str, float],
-        start_shape,
-        J0=1.0,
-        experiment="release",
-    ):
-        from hystdisc.discovery.library import SHAPES
-
-        self.shape = SHAPES[shape] if isinstance(shape, str) else shape
-        self.torque_terms = list(torque_terms)
-        self.experiment = experiment
-        self.normalization = "z_sat = 1" if self.shape.name != "none" else "none"
-        self.names = list(self.torque_terms) + list(self.shape.shape_names)
-        x0 = [start_coefs.get(k, 0.0) for k in self.torque_terms] + list(start_shape)
-        lo = [-np.inf] * len(self.torque_terms) + [-np.inf] * len(self.shape.shape_names)
-        hi = [np.inf] * len(self.names)
-        if experiment == "forced":
-            self.names.append("J")
-            x0.append(J0)
-            lo.append(1e-12)
-            hi.append(np.inf)
-        self.lower = np.array(lo, dtype=float)
-        self.upper = np.array(hi, dtype=float)
-        self.x0 = _clip_start(x0, self.lower, self.upper)
-
-    def terms(self, x):
-        nt = len(self.torque_terms)
-        ns = len(self.shape.shape_names)
-        b, n = self.shape.vector(np.asarray(x[nt : nt + ns]))
-        from hystdisc.models import HYSTERESIS_TERM_NAMES
-
-        hyst = {k: float(v) for k, v in zip(HYSTERESIS_TERM_NAMES, b, strict=True) if v != 0.0}
-        tm = TermModel(dict(zip(self.torque_terms, map(float, x[:nt]), strict=True)), hyst, n)
-        if self.experiment == "forced":
-            tm.J = float(x[-1])
-        return tm
-
-    def params(self, x):
-        nt = len(self.torque_terms)
-        ns = len(self.shape.shape_names)
-        p = dict(zip(self.torque_terms, map(float, x[:nt]), strict=True))
-        p.update(self.shape.shape_dict(np.asarray(x[nt : nt + ns])))
-        if self.experiment == "forced":
-            p["J"] = float(x[-1])
-        return p
-
-
-# ----------------------------------------------------------------------------- the fit
-
-
-def levenberg_marquardt(
-    fun,
-    jac,
-    x0,
-    lower,
-    upper,
-    max_iter=60,
-    tol=1e-6,
-    return_jac=False,
-    jac0=None,
-    r0=None,
-    gram=None,
-):
-    """Bounded Levenberg-Marquardt on the normal equations (N >> p, so the p x p Gram matrix
-    is far cheaper than the SVD of the tall Jacobian that scipy's trust-region solvers use).
-
-    Steps are clipped to the bounds; Marquardt's diagonal scaling makes it scale-invariant.
-    It stops when a step lowers the cost by less than ``tol`` (relative), or before taking
-    a step that the local (damped Gauss-Newton) model predicts to do so, which saves the
-    Jacobian evaluation such a step would be followed by.
-    Returns the solution, the number of Jacobian evaluations and whether it converged (and,
-    with ``return_jac``, the Jacobian at the solution when it was evaluated there, else
-    None). ``jac0``, an approximation of the Jacobian at ``x0`` (e.g. interpolated from a
-    coarser grid), is used for the first step instead of evaluating ``jac``; every later
-    step and the convergence test after it use ``jac``. ``r0`` is ``fun(x0)`` when already
-    known; ``gram(J)`` computes ``J.T @ J`` (e.g. from a known block structure).
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> t = np.linspace(0, 1, 50)
-    >>> fun = lambda p: p[0] * np.exp(-p[1] * t) - 2.0 * np.exp(-3.0 * t)
-    >>> jac = lambda p: np.column_stack([np.exp(-p[1] * t), -p[0] * t * np.exp(-p[1] * t)])
-    >>> x, n, ok = levenberg_marquardt(fun, jac, np.array([1.0, 1.0]), np.zeros(2), np.full(2, 9.0))
-    >>> np.round(x, 6).tolist(), ok
-    ([2.0, 3.0], True)
-    """
-    x = np.clip(np.asarray(x0, dtype=float), lower, upper)
-    r = r0 if r0 is not None and np.array_equal(x, x0) else fun(x)
-    if not np.all(np.isfinite(r)):
-        raise HystdiscError(
-            "the output-error fit cannot start: the model diverges at its starting parameters; "
-            "fix: check the data for motion and the starting parameters"
-        )
-    cost = float(r @ r)
-    lam = 1e-3
-    njev = 0
-    converged = False
-    J_at_x = None
-    for it in range(max_iter):
-        if it == 0 and jac0 is not None:
-            J = jac0
-            J_at_x = None  # an approximation: never handed out as the Jacobian at x
-        else:
-            J = jac(x)
-            njev += 1
-            J_at_x = J
-        A = J.T @ J if gram is None else gram(J)
-        g = J.T @ r
-        d = np.diag(A).copy()
-        d[d <= 0] = 1.0
-        # variables held at a bound by the gradient are left out of the step (projection)
-        free = ~(((x <= lower) & (g > 0)) | ((x >= upper) & (g < 0)))
-        if not free.any():
-            converged = True
-            break
-        Af = A[np.ix_(free, free)]
-        gf = g[free]
-        if lam <= PRED_MAX_LAMBDA:
-            # the step the model predicts to gain less than tol is not worth a Jacobian
-            try:
-                sf = np.linalg.solve(Af + lam * np.diag(d[free]), gf)
-            except np.linalg.LinAlgError:
-                sf = None
-            if sf is not None and np.all(np.isfinite(sf)):
-                pred = float(2.0 * gf @ sf - sf @ Af @ sf)
-                if pred < tol * cost:
-                    converged = True
-                    break
-        improved = False
-        while lam < 1e12:
-            step = np.zeros_like(x)
-            try:
-                step[free] = -np.linalg.solve(Af + lam * np.diag(d[free]), gf)
-            except np.linalg.LinAlgError:
-                lam *= 10.0
-                continue
-            xn = np.clip(x + step, lower, upper)
-            rn = fun(xn)
-            cn = float(rn @ rn) if np.all(np.isfinite(rn)) else np.inf
-            if cn < cost:
-                rel = (cost - cn) / max(cost, 1e-300)
-                small = np.all(np.abs(xn - x) <= 1e-9 * (np.abs(x) + 1e-9))
-                x, r, cost = xn, rn, cn
-                J_at_x = None
-                lam = max(lam / 5.0, 1e-12)
-                improved = True
-                if rel < tol or small:
-                    converged = True
-                break
-            lam *= 8.0
-        if not improved:
-            converged = True  # no downhill step left: a (local) minimum
-            break
-        if converged:
-            break
-    if return_jac:
-        return x, njev, converged, J_at_x
-    return x, njev, converged
-
-
 @dataclass
 class OEFit:
-    """Result of an output-error fit."""
+    """Result of an output-error fit.
+
+    Attributes
+    ----------
+    par : Parametrization
+        What was fitted (free parameters <-> term model).
+    x : ndarray
+        The free parameters at the optimum.
+    nuisance : ndarray
+        Each run's initial-state parameters, shape ``(n_runs, n_nuisance)``.
+    params : dict
+        Every reported parameter (free and derived) by name.
+    ci95, stderr : dict
+        95 % interval and standard error of each reported parameter.
+    identifiable : dict
+        False for a parameter whose interval is wider than its value, or that lies along
+        a near-singular direction of the scaled Jacobian.
+    notes : list of str
+        Identifiability and held-out notes in plain words.
+    rms, rss : float
+        Residual RMS and sum of squares over the ``n_obs`` samples that enter the fit.
+    n_obs, n_params : int
+        Residuals, and free parameters including the initial states.
+    bic : float
+        :func:`hystdisc.stats.bic` of the fit.
+    predictions, residuals : list of ndarray
+        Each run's simulated output and its residual (all samples).
+    heldout_rms : float or None
+        Leave-one-run-out RMS (None when not computed or a held-out run diverged).
+    heldout_predictions : list of ndarray or None
+        The held-out predictions.
+    nfev : int
+        Jacobian evaluations spent.
+    success : bool
+        The Levenberg-Marquardt converged.
+    """
 
     par: Parametrization
     x: np.ndarray
@@ -584,11 +198,24 @@ class OEFit:
 
     @property
     def term_model(self) -> TermModel:
+        """The fitted model in term form."""
         return self.par.terms(self.x)
 
 
 class OutputErrorFitter:
-    """Fit a :class:`Parametrization` to :class:`FitData` by output error."""
+    """Fit a :class:`Parametrization` to :class:`FitData` by output error.
+
+    Parameters
+    ----------
+    data : FitData
+        The runs.
+    par : Parametrization
+        The structure and its start.
+    max_nfev : int
+        Limit of Jacobian evaluations (Levenberg-Marquardt iterations).
+    rel_step : float
+        Relative step of the forward differences.
+    """
 
     def __init__(
         self, data: FitData, par: Parametrization, max_nfev: int = 60, rel_step: float = 1e-6
@@ -601,7 +228,8 @@ class OutputErrorFitter:
         self.state = bool(par.terms(par.x0).hysteresis)
         self.nnu = data.n_nuisance(self.state)
         self.masks = data.mask
-        self._rows = np.cumsum([0] + [int(m.sum()) for m in data.mask])
+        #: Where each run's residual rows start (and the last one ends) in the residual.
+        self.row_offsets = np.cumsum([0] + [int(m.sum()) for m in data.mask])
 
     def gram(self, J: np.ndarray) -> np.ndarray:
         """``J.T @ J`` of this fit's Jacobian from its blocks: a run's initial-state columns
@@ -614,7 +242,7 @@ class OutputErrorFitter:
         Jg = J[:, :k]
         A[:k, :k] = Jg.T @ Jg
         for r in range(self.data.n_runs):
-            rows = slice(self._rows[r], self._rows[r + 1])
+            rows = slice(self.row_offsets[r], self.row_offsets[r + 1])
             c = slice(k + r * nn, k + (r + 1) * nn)
             Jn = J[rows, c]
             B = Jg[rows].T @ Jn
@@ -666,7 +294,7 @@ class OutputErrorFitter:
             if xj[j] > self.par.upper[j]:
                 xj[j] -= 2 * steps[j]
             tms.append(self.par.terms(xj))
-        Jm = np.zeros((self._rows[-1], len(v)))
+        Jm = np.zeros((self.row_offsets[-1], len(v)))
         group: list[int] = []
         size = 0
         for r in range(R):
@@ -705,7 +333,7 @@ class OutputErrorFitter:
                 continue
             h = steps[j] if j >= self.npar or x[j] + steps[j] <= self.par.upper[j] else -steps[j]
             d = (preds[e] - base[r])[self.masks[r]] / h
-            Jm[self._rows[r] : self._rows[r + 1], j] = d
+            Jm[self.row_offsets[r] : self.row_offsets[r + 1], j] = d
 
     def fit(self, heldout: bool = True) -> OEFit:
         """Levenberg-Marquardt from the parametrization's start; intervals, BIC and (with
@@ -770,12 +398,12 @@ class OutputErrorFitter:
         """The Jacobian of ``coarse`` (a decimation of this fit's data) at every sample."""
         if not np.all(np.isfinite(Jc)):
             return None
-        out = np.empty((self._rows[-1], Jc.shape[1]))
+        out = np.empty((self.row_offsets[-1], Jc.shape[1]))
         for r in range(self.data.n_runs):
             tf = self.data.t[r][self.masks[r]]
             tc = coarse.data.t[r][coarse.masks[r]]
-            Jr = Jc[coarse._rows[r] : coarse._rows[r + 1]]
-            rows = slice(self._rows[r], self._rows[r + 1])
+            Jr = Jc[coarse.row_offsets[r] : coarse.row_offsets[r + 1]]
+            rows = slice(self.row_offsets[r], self.row_offsets[r + 1])
             if tc.size == tf.size:
                 out[rows] = Jr
             elif tc.size >= 4:
@@ -793,7 +421,7 @@ class OutputErrorFitter:
         k = len(v)
         rss = float(res @ res)
         rms = float(np.sqrt(rss / N))
-        bic = float(N * np.log(max(rss, 1e-300) / N) + k * np.log(N))
+        bic = _bic(rss, N, k)
         s2 = rss / max(N - k, 1)
         # covariance with column scaling for conditioning
         # the small Gram matrix, column-scaled (no scaled copy of the tall Jacobian)
@@ -888,7 +516,7 @@ class OutputErrorFitter:
         G = self.gram(Jm) if gram is None else gram
         g = Jm.T @ res
         for r in range(R):
-            sl = slice(self._rows[r], self._rows[r + 1])
+            sl = slice(self.row_offsets[r], self.row_offsets[r + 1])
             cols = np.ones(len(v), dtype=bool)
             cols[self.npar + r * self.nnu : self.npar + (r + 1) * self.nnu] = False
             # the run's rows touch the parameters and its own initial state only

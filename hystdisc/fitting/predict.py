@@ -13,6 +13,7 @@ import numpy as np
 from hystdisc.data import Dataset, estimate_noise
 from hystdisc.discovery.differentiation import differentiate
 from hystdisc.models import TermModel
+from hystdisc.registry import get_experiment
 from hystdisc.simulation import simulate_driven_runs, simulate_mech
 
 
@@ -30,13 +31,13 @@ def predict_dataset(
     >>> bool(np.max(np.abs(pred[0] - data.runs[0].theta)) < 1e-6)
     True
     """
-    exp = experiment or dataset.experiment
+    exp = get_experiment(experiment or dataset.experiment)
     runs = list(dataset.runs)
     ders = []
     for r in runs:
         noise = estimate_noise(r.theta, r.fs)
         ders.append(differentiate(r.t, r.theta, noise))
-    if exp == "driven":
+    if exp.motion_imposed:
         out, _ = simulate_driven_runs(
             tm,
             [r.t for r in runs],
@@ -46,7 +47,7 @@ def predict_dataset(
             raise_on_divergence=True,
         )
         return [o.torque for o in out]
-    if exp == "forced":
+    if exp.has_input:
         states = [initial_state(tm, r, d, input_hold) for r, d in zip(runs, ders, strict=True)]
         out, _ = simulate_mech(
             tm,

@@ -42,7 +42,7 @@ in :mod:`~hystdisc.report.overview`, :mod:`~hystdisc.report.comparison` and
 Examples
 --------
 >>> import tempfile, pathlib
->>> from hystdisc.discovery.stage1 import Discovery
+>>> from hystdisc.estimator import Discovery
 >>> from hystdisc.simulation.synth import generate
 >>> data = generate("dahl", currents=(0, 0.5, 1), duration=2.0, seed=1)
 >>> disc = Discovery(families=["dahl", "bingham"], heldout=False, close_loop=False).fit(data)

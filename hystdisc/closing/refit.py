@@ -1,0 +1,275 @@
+"""Refits of the model plus an effect, and what decides which effects are candidates.
+
+:func:`candidate_effects` lists the catalogued effects the fitted model could still lack;
+:func:`stage1_start` and :func:`screen_starts` give each augmented structure an
+equation-error (stage 1) start that does not rely on the current optimum;
+:func:`refit_with` refits the model plus one effect by output error from the better of
+the local and the stage-1 starts.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from hystdisc.closing.scores import EffectScore, with_effects
+from hystdisc.data import distinct_currents
+from hystdisc.discovery.stage1 import family_start
+from hystdisc.fitting import FitData, OEFit, OutputErrorFitter
+from hystdisc.models import EFFECTS, Z_TORQUE_TERMS
+from hystdisc.stats import bic_change
+
+#: An effect is accepted only when its refit lowers BIC by more than this (the margin
+#: within which :mod:`hystdisc.estimator` calls two families equal fits,
+#: ``EQUAL_FIT_BIC``), and refitted only when the score test predicts such a drop.
+EFFECT_BIC_MARGIN = 6.0
+#: Effects whose terms are linear in these signals need a rig spring to mean anything.
+SPRING_EFFECTS = ("offset", "cubic_stiffness")
+
+
+def current_levels(currents: np.ndarray) -> int:
+    """Number of distinct current levels among the runs' currents."""
+    return len(distinct_currents(currents))
+
+
+def has_spring(fit: OEFit) -> bool:
+    """True when the fitted rig spring ``k_s`` is significantly above zero.
+
+    Parameters
+    ----------
+    fit : OEFit
+        A family fit (its parameters include ``k_s``).
+
+    Returns
+    -------
+    bool
+        ``k_s > 0`` and the lower end of its 95 % interval above 0.
+    """
+    ks = fit.params.get("k_s", 0.0)
+    lo = fit.ci95.get("k_s", (0.0, 0.0))[0]
+    return bool(np.isfinite(ks) and ks > 0.0 and np.isfinite(lo) and lo > 0.0)
+
+
+def candidate_effects(fit: OEFit, data: FitData) -> tuple[list[str], list[dict]]:
+    """Catalogued effects the fitted model could still lack.
+
+    Parameters
+    ----------
+    fit : OEFit
+        Fit of a :class:`~hystdisc.fitting.FamilyParametrization` (possibly with effects).
+    data : FitData
+        The data it was fitted to (its currents decide what the current effects need).
+
+    Returns
+    -------
+    candidates : list of str
+        Effect names, in catalogue order.
+    skipped : list of dict
+        ``{"name", "reason"}`` for each effect left out.
+    """
+    par = fit.par
+    tm = fit.term_model
+    fam = par.family
+    have = set(fam.torque_terms) | {t for e in par.effects for t in EFFECTS[e].terms}
+    # terms the family can carry but fixed at zero (one current) do not count as present
+    have |= {k for k, v in tm.torque.items() if v != 0.0}
+    levels = current_levels(data.currents)
+    spring = has_spring(fit)
+    out, skipped = [], []
+    for name, eff in EFFECTS.items():
+        reason = None
+        if name in par.effects:
+            continue
+        if all(t in have for t in eff.terms):
+            reason = f"{fam.name} already has {', '.join(eff.terms)}"
+        elif any(t in Z_TORQUE_TERMS for t in eff.terms) and not tm.has_state:
+            reason = f"{fam.name} has no hysteretic state z"
+        elif any(t.startswith("i^2") for t in eff.terms) and levels < 3:
+            reason = f"needs three current levels or more, the data have {levels}"
+        elif any(t.startswith("i") for t in eff.terms) and levels < 2:
+            reason = "needs two current levels or more, the data have one"
+        elif name in SPRING_EFFECTS and not spring:
+            reason = "no rig spring (k_s is not significantly above 0)"
+        if reason is None:
+            out.append(name)
+        else:
+            skipped.append({"name": name, "reason": reason})
+    return out, skipped
+
+
+def stage1_start(
+    eq, fit: OEFit, effects: Sequence[str], data: FitData, s0: np.ndarray | None = None
+) -> dict | None:
+    """Equation-error (stage 1) start of ``fit``'s family plus ``effects``.
+
+    The hysteresis shape constants and the torque coefficients of the family's terms, the
+    spring and the effects' terms are fitted by variable projection on the equation-error
+    data, then mapped to the family's and the effects' parameters (as discovery starts a
+    family's output-error fit).
+
+    Parameters
+    ----------
+    eq : EqData
+        Equation-error data of the discovery.
+    fit : OEFit
+        Fit of a :class:`~hystdisc.fitting.FamilyParametrization`.
+    effects : sequence of str
+        Effects of the augmented structure.
+    data : FitData
+        The output-error data (for the number of current levels).
+    s0 : ndarray, optional
+        Shape constants to start the local search from (e.g. the family's own stage-1
+        shape); default: discovery's grid first.
+
+    Returns
+    -------
+    dict or None
+        Parameter values by name; None when stage 1 fails.
+    """
+    fam = fit.par.family
+    eff_terms = [t for e in effects for t in EFFECTS[e].terms]
+    try:
+        with np.errstate(all="ignore"):
+            p, coefs = family_start(
+                eq,
+                fam.name,
+                eff_terms,
+                s0=s0,
+                one_level=current_levels(data.currents) < 2,
+                constant=False,
+            )
+    except Exception:  # noqa: BLE001 - a start is optional
+        return None
+    for e in effects:
+        p.update(EFFECTS[e].from_torque(coefs, p["k_s"]))
+    for k, v in fit.par.fixed.items():
+        p[k] = v
+    if not all(np.isfinite(v) for v in p.values()):
+        return None
+    return p
+
+
+def _start_rss(data: FitData, fit: OEFit, effects: Sequence[str], start: dict) -> float:
+    """Output-error RSS of ``fit``'s structure plus ``effects`` at the parameters ``start``."""
+    par0 = fit.par
+    extra = [e for e in effects if e not in par0.effects]
+    par = par0.like(start, tuple(par0.effects) + tuple(extra))
+    v = np.concatenate([par.x0, np.asarray(fit.nuisance, dtype=float).ravel()])
+    with np.errstate(all="ignore"):
+        r = OutputErrorFitter(data, par).residuals(v)
+    return float(r @ r) if np.all(np.isfinite(r)) else float("inf")
+
+
+def screen_starts(
+    eq, data: FitData, fit: OEFit, scores: list[EffectScore], s0: np.ndarray | None = None
+) -> None:
+    """Fill ``start``/``start_rms``/``start_dbic`` of each score from a stage-1 start.
+
+    Parameters
+    ----------
+    eq : EqData
+        Equation-error data.
+    data : FitData
+        Output-error data.
+    fit : OEFit
+        The current fit.
+    scores : list of EffectScore
+        Candidates (updated in place).
+    s0 : ndarray, optional
+        Stage-1 shape constants of the family to start the shape search from (skips the
+        grid, see :func:`stage1_start`).
+    """
+    N = sum(int(m.sum()) for m in data.mask)
+    for sc in scores:
+        effects = (*fit.par.effects, sc.name)
+        st = stage1_start(eq, fit, effects, data, s0=s0)
+        if st is None:
+            continue
+        rss = _start_rss(data, fit, effects, st)
+        if not np.isfinite(rss):
+            continue
+        q = len(EFFECTS[sc.name].params)
+        sc.start = st
+        sc.start_rms = float(np.sqrt(rss / N))
+        sc.start_dbic = bic_change(rss, fit.rss, N, q)
+
+
+def refit_with(
+    data: FitData,
+    fit: OEFit,
+    effect: str,
+    estimate: dict[str, float] | None = None,
+    max_nfev: int = 60,
+    heldout: bool = False,
+    start: dict[str, float] | None = None,
+    good_rms: float = 0.0,
+) -> OEFit:
+    """Refit ``fit`` plus ``effect`` by output error.
+
+    Starts: the current optimum with the effect at 0, with the effect at its one-step
+    estimate ``estimate``, and the stage-1 start ``start``; the fit runs from the one with
+    the lowest RSS, and once more from the best start of the other kind (local or stage 1)
+    when the first does not lower BIC by the margin or stays above ``good_rms``.
+
+    Parameters
+    ----------
+    data : FitData
+        The data.
+    fit : OEFit
+        Current fit (a :class:`~hystdisc.fitting.FamilyParametrization`).
+    effect : str
+        Catalogue name of the effect to add.
+    estimate : dict, optional
+        One-step values of the effect's parameters (default 0).
+    max_nfev : int
+        Simulation budget of each fit.
+    heldout : bool
+        Also compute the leave-one-run-out error.
+    start : dict, optional
+        A full start (family, rig and effect parameters), e.g. from :func:`stage1_start`.
+    good_rms : float
+        An RMS that needs no second start (e.g. a little above the noise).
+
+    Returns
+    -------
+    OEFit
+        The refit with the lowest BIC.
+    """
+    local = []
+    for values in [None] + ([estimate] if estimate and any(estimate.values()) else []):
+        par, x = with_effects(fit, [effect], values)
+        st = dict(zip(par.names, map(float, x), strict=True))
+        local.append((_start_rss(data, fit, [effect], st), st))
+    local.sort(key=lambda t: t[0])
+    groups = [local[0]]
+    if start is not None:
+        g = (_start_rss(data, fit, [effect], start), start)
+        groups = [g, local[0]] if g[0] < local[0][0] else [local[0], g]
+    best = None
+    for _, st in groups:
+        par0 = fit.par
+        par = par0.like(st, (*par0.effects, effect))
+        with np.errstate(all="ignore"):
+            new = OutputErrorFitter(data, par, max_nfev=max_nfev).fit(heldout=heldout)
+        if best is None or (np.isfinite(new.bic) and new.bic < best.bic):
+            best = new
+        if fit_ok(best, fit) and best.bic < fit.bic - EFFECT_BIC_MARGIN and best.rms <= good_rms:
+            break
+    return best
+
+
+def fit_ok(fit: OEFit, before: OEFit) -> bool:
+    """A refit is usable: finite, and its simulation did not blow up."""
+    if not (np.isfinite(fit.rms) and np.isfinite(fit.bic)):
+        return False
+    if not all(np.all(np.isfinite(p)) for p in fit.predictions):
+        return False
+    return bool(fit.rms < 10.0 * before.rms + 1e-300)
+
+
+def refit_without(data: FitData, fit: OEFit, like: OEFit, max_nfev: int, heldout: bool):
+    """Refit the structure of ``like`` started from ``fit`` (which has one effect more)."""
+    par0 = like.par
+    par = par0.like(dict(fit.params), par0.effects)
+    return OutputErrorFitter(data, par, max_nfev=max_nfev).fit(heldout=heldout)

@@ -1,0 +1,166 @@
+"""The runs as the output-error fit sees them: :class:`FitData`.
+
+Each run's time, measured output (the angle, or the torque of a driven run), imposed or
+smoothed motion, input and the mask of the samples that enter the residual, plus what the
+fit derives from them: the per-run initial-state (nuisance) parameters of the experiment
+type and a decimated copy for the bulk of a long fit.
+
+Examples
+--------
+>>> import numpy as np
+>>> t = np.linspace(0.0, 1.0, 5)
+>>> fd = FitData("release", ["a"], [t], [np.cos(t)], np.array([0.5]), [np.cos(t)],
+...              [-np.sin(t)], [np.zeros(5)], [np.ones(5, dtype=bool)])
+>>> fd.nuisance_names(), fd.nuisance_start().tolist()
+(['theta0[a]'], [1.0])
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from hystdisc.registry import get_experiment
+from hystdisc.simulation import input_slopes
+from hystdisc.stats import samples_per_cycle
+
+#: Samples per cycle of the motion kept by the bulk of an output-error fit (the fit then
+#: finishes on the full data, so the optimum, intervals and BIC refer to every sample).
+BULK_PER_CYCLE = 100
+#: A run is decimated for the bulk only if it keeps at least this many samples.
+BULK_MIN_SAMPLES = 200
+
+
+@dataclass
+class FitData:
+    """Runs prepared for the output-error fit (all arrays per run)."""
+
+    experiment: str
+    names: list[str]
+    t: list[np.ndarray]
+    y: list[np.ndarray]  # measured output: theta (release/forced) or torque (driven)
+    currents: np.ndarray
+    theta: list[np.ndarray]  # driven: imposed motion (smoothed); else measured theta
+    theta_dot: list[np.ndarray]  # driven: imposed velocity; else smoothed estimate
+    u: list[np.ndarray]  # forced: input; else zeros
+    mask: list[np.ndarray]  # samples that enter the residual
+    noise_std: float = 0.0
+    hold: str = "cubic"
+    du: list[np.ndarray] | None = None  # forced: spline slopes of the input (cached)
+    steps: list[int] | None = None  # decimation factor of each run (sub-step caps scale)
+    _bulk: FitData | None = field(default=None, init=False, repr=False, compare=False)
+    _bulk_done: bool = field(default=False, init=False, repr=False, compare=False)
+
+    def input_slopes(self) -> list[np.ndarray]:
+        """Per-run slopes of the input's cubic spline (computed once)."""
+        if self.du is None:
+            self.du = [
+                input_slopes(t, u, np.array([0, t.size]))
+                for t, u in zip(self.t, self.u, strict=True)
+            ]
+        return self.du
+
+    @property
+    def exp(self):
+        """The experiment object of :attr:`experiment` (see :mod:`hystdisc.experiments`)."""
+        return get_experiment(self.experiment)
+
+    @property
+    def n_runs(self) -> int:
+        """Number of runs."""
+        return len(self.t)
+
+    def run_steps(self) -> list[int]:
+        """Each run's decimation factor against the data it was measured as (1: all)."""
+        return list(self.steps) if self.steps is not None else [1] * self.n_runs
+
+    def bulk_factors(self) -> list[int]:
+        """Per-run decimation factor of the bulk of an output-error fit.
+
+        Every run keeps about :data:`BULK_PER_CYCLE` samples per cycle of its motion (and of
+        a forced run's input); the simulator's sub-steps keep the integration as accurate
+        as on the full grid.
+        """
+        out = []
+        for k in range(self.n_runs):
+            per = samples_per_cycle(self.theta_dot[k])
+            if self.exp.has_input:
+                per = min(per, samples_per_cycle(self.u[k] - np.mean(self.u[k])))
+            q = int(per // BULK_PER_CYCLE)
+            # a short run or one whose residual rows would thin out is kept as it is
+            if self.t[k].size // max(q, 1) < BULK_MIN_SAMPLES:
+                q = 1
+            out.append(max(q, 1))
+        return out
+
+    def bulk(self) -> FitData | None:
+        """The data decimated by :meth:`bulk_factors` (computed once), or None when that
+        would not save at least half of the samples."""
+        if not self._bulk_done:
+            self._bulk_done = True
+            qs = self.bulk_factors()
+            n_full = sum(t.size for t in self.t)
+            n_bulk = sum(-(-t.size // q) for t, q in zip(self.t, qs, strict=True))
+            if n_bulk <= n_full / 2:
+                self._bulk = self.decimated(qs)
+        return self._bulk
+
+    def decimated(self, qs: list[int]) -> FitData:
+        """Every ``qs[k]``-th sample of run ``k`` (a forced run keeps its full-rate spline
+        slopes at the samples kept)."""
+        dec = lambda xs: [x[::q] for x, q in zip(xs, qs, strict=True)]  # noqa: E731
+        du = None
+        if self.exp.has_input and self.hold == "cubic":
+            du = dec(self.input_slopes())
+        return FitData(
+            self.experiment,
+            list(self.names),
+            dec(self.t),
+            dec(self.y),
+            self.currents,
+            dec(self.theta),
+            dec(self.theta_dot),
+            dec(self.u),
+            dec(self.mask),
+            self.noise_std,
+            self.hold,
+            du,
+            [q * s for q, s in zip(qs, self.run_steps(), strict=True)],
+        )
+
+    def subset(self, idx: list[int]) -> FitData:
+        """The runs ``idx`` only (in that order)."""
+        pick = lambda xs: [xs[k] for k in idx]  # noqa: E731
+        return FitData(
+            self.experiment,
+            pick(self.names),
+            pick(self.t),
+            pick(self.y),
+            self.currents[idx],
+            pick(self.theta),
+            pick(self.theta_dot),
+            pick(self.u),
+            pick(self.mask),
+            self.noise_std,
+            self.hold,
+            None if self.du is None else pick(self.du),
+            None if self.steps is None else pick(self.steps),
+        )
+
+    def n_nuisance(self, state: bool = False) -> int:
+        """Nuisance parameters per run (initial state; ``state``: the model has a z)."""
+        return len(self.exp.initial_state(state))
+
+    def nuisance_names(self, state: bool = False) -> list[str]:
+        """Names of every run's nuisance parameters, ``name[run]``, run after run."""
+        return [f"{p}[{n}]" for n in self.names for p in self.exp.initial_state(state)]
+
+    def nuisance_start(self, state: bool = False) -> np.ndarray:
+        """Start of the nuisance parameters: each run's first sample (z at 0)."""
+        names = self.exp.initial_state(state)
+        out = []
+        for k in range(self.n_runs):
+            first = {"theta0": self.theta[k][0], "theta_dot0": self.theta_dot[k][0], "z0": 0.0}
+            out.extend(first[p] for p in names)
+        return np.array(out, dtype=float)

@@ -1,0 +1,182 @@
+"""Free parameters <-> term model: what an output-error fit varies.
+
+:class:`FamilyParametrization` fits a family's own parameters (plus the rig spring, the
+inertia when it is identifiable, and the parameters of added effects);
+:class:`TermParametrization` fits the coefficients of a discovered set of torque terms and
+the shape constants of a hysteresis shape.
+
+Examples
+--------
+>>> p = FamilyParametrization("dahl", "release", {})
+>>> p.names[-1]
+'k_s'
+>>> sorted(p.terms(p.x0).hysteresis)
+['theta_dot', '|theta_dot|*z']
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from hystdisc.errors import HystdiscError
+from hystdisc.models import (
+    EFFECTS,
+    HYSTERESIS_TERM_NAMES,
+    RIG_PARAMS,
+    Family,
+    Param,
+    TermModel,
+    get_family,
+)
+from hystdisc.registry import get_experiment
+
+
+class Parametrization:
+    """Free parameters <-> term model. Subclasses define names, start and bounds."""
+
+    names: list[str]
+    x0: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    normalization: str = ""
+
+    def terms(self, x: np.ndarray) -> TermModel:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def params(self, x: np.ndarray) -> dict[str, float]:
+        """Every reported parameter (free and derived) for the free vector ``x``."""
+        return dict(zip(self.names, map(float, x), strict=True))
+
+
+def _clip_start(x0, lo, hi):
+    """Clip a start strictly inside the bounds (the projected Levenberg-Marquardt starts inside them)."""
+    x0 = np.asarray(x0, dtype=float).copy()
+    lo_in = np.where(np.isfinite(lo), lo + 1e-10 * (np.abs(lo) + 1e-3), lo)
+    hi_in = np.where(np.isfinite(hi), hi - 1e-10 * (np.abs(hi) + 1e-3), hi)
+    return np.clip(x0, lo_in, hi_in)
+
+
+class FamilyParametrization(Parametrization):
+    """A family's own parameters (+ rig ``k_s``/``J`` + effect parameters).
+
+    Bouc-Wen families are normalized to ``z_sat = 1`` (``delta = beta + gamma``, so
+    ``delta`` is derived); the other families carry their own scale.
+    """
+
+    def __init__(
+        self,
+        family: str | Family,
+        experiment: str,
+        start: dict[str, float],
+        effects: tuple[str, ...] = (),
+        fixed: dict[str, float] | None = None,
+        normalization: str = "z_sat",
+    ) -> None:
+        self.family = get_family(family) if isinstance(family, str) else family
+        self.fixed = dict(fixed or {})
+        bw = self.family.name.startswith("bouc-wen")
+        if normalization not in ("z_sat", "alpha_1"):
+            raise HystdiscError(
+                f"unknown normalization '{normalization}'; fix: use z_sat or alpha_1"
+            )
+        if bw and normalization == "alpha_1":
+            # z in torque units (alpha_1 = 1), delta free: for loops that never saturate
+            self.fixed.setdefault("alpha_1", 1.0)
+        self.experiment = experiment
+        self.effects = tuple(effects)
+        self.norm = normalization if bw else "z_sat"
+        self.derived = ["delta"] if bw and normalization == "z_sat" else []
+        self.normalization = (
+            "alpha_1 = 1 (z in torque units)"
+            if bw and normalization == "alpha_1"
+            else self.family.normalization
+        )
+        specs: list[Param] = [
+            p for p in self.family.params if p.name not in self.derived and p.name not in self.fixed
+        ]
+        specs.append(RIG_PARAMS[0])  # k_s
+        if get_experiment(experiment).inertia_identifiable:
+            specs.append(RIG_PARAMS[1])  # J
+        for e in self.effects:
+            specs.extend(EFFECTS[e].params)
+        self.specs = specs
+        self.names = [p.name for p in specs]
+        self.lower = np.array([p.lower for p in specs], dtype=float)
+        self.upper = np.array([p.upper for p in specs], dtype=float)
+        x0 = [start.get(p.name, p.default) for p in specs]
+        self.x0 = _clip_start(x0, self.lower, self.upper)
+
+    def like(self, start: dict[str, float], effects: tuple[str, ...]) -> FamilyParametrization:
+        """The same family, normalization and fixed parameters with other ``effects``."""
+        return FamilyParametrization(
+            self.family, self.experiment, start, effects, self.fixed, self.norm
+        )
+
+    def params(self, x):
+        p = dict(zip(self.names, map(float, x), strict=True))
+        p.update(self.fixed)
+        if self.derived:
+            p["delta"] = p["beta"] + p["gamma"]
+        return p
+
+    def terms(self, x):
+        p = self.params(x)
+        tm = self.family.to_terms(p)
+        tm.torque["theta"] = tm.torque.get("theta", 0.0) + p["k_s"]
+        tm.J = p.get("J", 1.0)
+        for e in self.effects:
+            for k, v in EFFECTS[e].to_torque(p, p["k_s"]).items():
+                tm.torque[k] = tm.torque.get(k, 0.0) + v
+        return tm
+
+
+class TermParametrization(Parametrization):
+    """Free coefficients of chosen torque terms plus the shape constants of a hysteresis shape."""
+
+    def __init__(
+        self,
+        torque_terms,
+        shape,
+        start_coefs: dict[str, float],
+        start_shape,
+        J0=1.0,
+        experiment="release",
+    ):
+        from hystdisc.discovery.library import SHAPES
+
+        self.shape = SHAPES[shape] if isinstance(shape, str) else shape
+        self.torque_terms = list(torque_terms)
+        self.experiment = experiment
+        self.normalization = "z_sat = 1" if self.shape.name != "none" else "none"
+        self.names = list(self.torque_terms) + list(self.shape.shape_names)
+        self.inertia = get_experiment(experiment).inertia_identifiable
+        x0 = [start_coefs.get(k, 0.0) for k in self.torque_terms] + list(start_shape)
+        lo = [-np.inf] * len(self.torque_terms) + [-np.inf] * len(self.shape.shape_names)
+        hi = [np.inf] * len(self.names)
+        if self.inertia:
+            self.names.append("J")
+            x0.append(J0)
+            lo.append(1e-12)
+            hi.append(np.inf)
+        self.lower = np.array(lo, dtype=float)
+        self.upper = np.array(hi, dtype=float)
+        self.x0 = _clip_start(x0, self.lower, self.upper)
+
+    def terms(self, x):
+        nt = len(self.torque_terms)
+        ns = len(self.shape.shape_names)
+        b, n = self.shape.vector(np.asarray(x[nt : nt + ns]))
+        hyst = {k: float(v) for k, v in zip(HYSTERESIS_TERM_NAMES, b, strict=True) if v != 0.0}
+        tm = TermModel(dict(zip(self.torque_terms, map(float, x[:nt]), strict=True)), hyst, n)
+        if self.inertia:
+            tm.J = float(x[-1])
+        return tm
+
+    def params(self, x):
+        nt = len(self.torque_terms)
+        ns = len(self.shape.shape_names)
+        p = dict(zip(self.torque_terms, map(float, x[:nt]), strict=True))
+        p.update(self.shape.shape_dict(np.asarray(x[nt : nt + ns])))
+        if self.inertia:
+            p["J"] = float(x[-1])
+        return p

@@ -1,0 +1,162 @@
+"""The estimator's scikit-learn contract: parameters, clone, fitted attributes, pickling.
+
+scikit-learn's own estimator checks run where they apply: those about parameters,
+construction, cloning, the repr and the tags. The checks that fit on random ``X``/``y``
+arrays do not apply (``Discovery.fit`` takes a :class:`~hystdisc.data.Dataset` of
+runs); what they test — ``fit`` returns ``self``, leaves the parameters alone, sets only
+attributes ending in ``_``, and a fitted estimator pickles — is tested here on a small
+synthetic dataset.
+"""
+
+from __future__ import annotations
+
+import copy
+import pickle
+from functools import cache
+
+import numpy as np
+import pytest
+from sklearn import clone
+from sklearn.utils import estimator_checks as checks
+
+import hystdisc
+from hystdisc.closing import LoopResult
+from hystdisc.estimator import Discovery
+from hystdisc.fitting import FitData, OEFit
+from hystdisc.models import Model
+from hystdisc.simulation.synth import generate
+
+#: A fit of a second or two: the declared family's own hysteresis shape only.
+FAST = {"model": "dahl", "shapes": ("dahl",), "heldout": False}
+
+SKLEARN_CHECKS = [
+    "check_parameters_default_constructible",
+    "check_no_attributes_set_in_init",
+    "check_get_params_invariance",
+    "check_set_params",
+    "check_estimator_cloneable",
+    "check_estimator_repr",
+    "check_do_not_raise_errors_in_init_or_set_params",
+    "check_estimator_tags_renamed",
+    "check_mixin_order",
+]
+
+
+@cache
+def _data():
+    return generate(Model("dahl"), currents=(0.0, 0.5, 1.0), duration=2.0, noise=1e-3, seed=4)
+
+
+@cache
+def _fitted() -> Discovery:
+    return Discovery(**FAST).fit(_data())
+
+
+def _same(a, b) -> bool:
+    """Parameter values equal (sequences compared by their items)."""
+    if isinstance(a, (list, tuple)) and isinstance(b, (list, tuple)):
+        return list(a) == list(b)
+    return a == b
+
+
+# ----------------------------------------------------------------------------- parameters
+
+
+def test_clone_round_trips_get_params():
+    d = hystdisc.Discovery()
+    c = clone(d)
+    assert c is not d and c.get_params() == d.get_params()
+    d2 = Discovery(families=["dahl", "lugre"], seed=3, verbose=2, n_jobs=1, close_loop=False)
+    assert clone(d2).get_params() == d2.get_params()
+
+
+def test_set_params_and_get_params():
+    d = Discovery()
+    params = d.get_params()
+    assert "verbose" in params and "progress" not in params
+    assert d.set_params(seed=5, families=("dahl",)) is d
+    assert d.seed == 5 and d.get_params()["families"] == ("dahl",)
+    with pytest.raises(ValueError):
+        d.set_params(no_such_option=1)
+
+
+def test_init_only_stores_its_arguments():
+    d = Discovery(families=["dahl"], threshold=0.1)
+    assert set(vars(d)) == set(d.get_params())
+    assert d.families == ["dahl"] and d.threshold == 0.1
+
+
+@pytest.mark.parametrize("check", SKLEARN_CHECKS)
+def test_sklearn_estimator_checks(check):
+    getattr(checks, check)("Discovery", Discovery())
+
+
+# ----------------------------------------------------------------------------- fit
+
+
+def test_fit_returns_self_and_leaves_the_parameters_alone():
+    d = Discovery(**FAST)
+    before = copy.deepcopy(d.get_params())
+    assert d.fit(_data()) is d
+    after = d.get_params()
+    assert set(before) == set(after)
+    assert all(_same(before[k], after[k]) for k in before), after
+
+
+def test_fitted_attributes_end_in_underscore():
+    d = _fitted()
+    params = set(d.get_params())
+    fitted = set(vars(d)) - params
+    assert fitted and all(k.endswith("_") and not k.startswith("_") for k in fitted), fitted
+    for name in ("fit_data_", "eq_data_", "loop_", "final_fit_", "effects_", "results_"):
+        assert name in fitted, name
+    assert isinstance(d.fit_data_, FitData)
+    assert isinstance(d.loop_, LoopResult) and isinstance(d.final_fit_, OEFit)
+    assert d.final_fit_ is d.loop_.fit and d.effects_ == list(d.loop_.effects)
+
+
+def test_without_the_loop_the_final_fit_is_the_selected_one():
+    d = Discovery(**FAST, close_loop=False).fit(_data())
+    assert d.loop_ is None and d.effects_ == []
+    assert d.final_fit_ is d.family_fits_[d.family_]
+    assert "effects_tried" not in d.results_.summary()
+
+
+def test_a_fitted_estimator_pickles():
+    d = _fitted()
+    e = pickle.loads(pickle.dumps(d))
+    assert e.get_params() == d.get_params()
+    assert e.family_ == d.family_ and e.effects_ == d.effects_
+    assert e.results_.summary() == d.results_.summary()
+    for p, q in zip(e.predict(_data()), d.predict(_data()), strict=True):
+        np.testing.assert_array_equal(p, q)
+
+
+def test_an_unfitted_estimator_pickles_and_clones_after_fit():
+    d = Discovery(verbose=1)
+    assert pickle.loads(pickle.dumps(d)).get_params() == d.get_params()
+    c = clone(_fitted())
+    assert not hasattr(c, "results_") and c.get_params() == _fitted().get_params()
+
+
+# ----------------------------------------------------------------------------- progress
+
+
+def test_verbose_prints_progress_on_stderr(capsys):
+    Discovery(**FAST, close_loop=False, verbose=1).fit(_data())
+    err = capsys.readouterr().err.splitlines()
+    assert err and all(line.startswith("[") and " s] " in line for line in err), err
+    assert any("stage 2: output-error fit of dahl" in line for line in err)
+
+
+def test_progress_callback_replaces_verbose(capsys):
+    messages: list[str] = []
+    Discovery(**FAST, verbose=1).fit(_data(), progress=messages.append)
+    assert capsys.readouterr().err == ""
+    assert messages[0] == "preparing data (noise, derivatives)"
+    assert "closing the loop: residual -> catalogued effects" in messages
+
+
+def test_quiet_by_default(capsys):
+    Discovery(**FAST, close_loop=False).fit(_data())
+    assert capsys.readouterr().err == ""
