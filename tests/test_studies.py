@@ -13,8 +13,8 @@ from matplotlib.figure import Figure
 
 from hystdisc.cli import main
 from hystdisc.errors import HystdiscError
-from hystdisc.plotting import loops_figure, plot_loops, plot_runs
-from hystdisc.simulation.studies import loop, parameter_study, plot_study
+from hystdisc.plotting import loops_figure, plot_loops, plot_runs, plot_study
+from hystdisc.simulation.studies import loop, parameter_study
 from hystdisc.simulation.synth import generate
 
 # ------------------------------------------------------------------ loop measurements

@@ -56,7 +56,8 @@ def run(args: argparse.Namespace) -> int:
     from matplotlib.figure import Figure
 
     from hystdisc.data import atomic_write_bytes
-    from hystdisc.simulation.studies import parameter_study, plot_study
+    from hystdisc.plotting import plot_study
+    from hystdisc.simulation.studies import parameter_study
 
     out = Path(args.output)
     if out.suffix.lower() not in FORMATS:

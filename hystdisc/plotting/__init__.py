@@ -24,6 +24,7 @@ from hystdisc.plotting.fits import plot_fit, plot_runs
 from hystdisc.plotting.loops import loops_figure, plot_loops
 from hystdisc.plotting.selection import plot_inclusion, plot_selection_path
 from hystdisc.plotting.spectrum import plot_residual_spectrum
+from hystdisc.plotting.studies import plot_study
 
 __all__ = [
     "loops_figure",
@@ -34,4 +35,5 @@ __all__ = [
     "plot_residual_spectrum",
     "plot_runs",
     "plot_selection_path",
+    "plot_study",
 ]
