@@ -107,7 +107,7 @@ def test_make_discovery_passes_the_command_line_options():
     args = build_parser().parse_args(
         ["discover", "x.csv", "--families", "dahl, bingham", "--seed", "3", "--no-heldout"]
     )
-    disc = make_discovery(discovery_options(args), print)
+    disc = make_discovery(discovery_options(args))
     assert isinstance(disc, hystdisc.Discovery)
     assert disc.families == ["dahl", "bingham"]
     assert disc.seed == 3

@@ -51,7 +51,7 @@ def build_parser() -> argparse.ArgumentParser:
                 raise
             continue
         p = mod.add_parser(sub)
-        p.set_defaults(_run=mod.run)
+        p.set_defaults(run_command=mod.run)
     return parser
 
 
@@ -71,7 +71,7 @@ def main(argv: list[str] | None = None) -> int:
 
     warnings.showwarning = _warn
     try:
-        return int(args._run(args) or 0)
+        return int(args.run_command(args) or 0)
     except HystdiscError as exc:
         print(f"hystdisc: error: {exc}", file=sys.stderr)
         return 2

@@ -21,7 +21,7 @@ from hystdisc.errors import HystdiscError
 HELP = "write a synthetic dataset of a known model (long CSV)"
 
 
-def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
+def add_parser(sub: Any) -> argparse.ArgumentParser:
     """Register ``hystdisc simulate``."""
     p = sub.add_parser(
         "simulate",

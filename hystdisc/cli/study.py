@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import io
 from pathlib import Path
+from typing import Any
 
 from hystdisc import registry
 from hystdisc.cli.simulate import _float, _int, parse_assignments, parse_effect
@@ -19,7 +20,7 @@ HELP = "plot a model's hysteresis loops while one parameter varies"
 FORMATS = (".png", ".pdf", ".svg")
 
 
-def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
+def add_parser(sub: Any) -> argparse.ArgumentParser:
     """Register ``hystdisc study``."""
     p = sub.add_parser(
         "study",

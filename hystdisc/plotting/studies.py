@@ -10,6 +10,7 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
+from hystdisc.plotting.loops import loops_figure
 from hystdisc.simulation.studies import CURRENT_NAMES
 
 
@@ -44,8 +45,6 @@ def plot_study(
     [3, 3]
     >>> import matplotlib.pyplot as plt; plt.close(fig)
     """
-    from hystdisc.plotting import loops_figure
-
     colors = matplotlib.colormaps[cmap](np.linspace(0.0, 0.9, max(len(study), 1)))
     loops = []
     for s, c in zip(study, colors, strict=False):

@@ -157,8 +157,12 @@ class Record:
             else:
                 extra[key] = value
         obj = cls(**kw, extra=extra)
-        obj._keys = tuple(data)  # type: ignore[misc]
+        obj.remember_keys(tuple(data))
         return obj
+
+    def remember_keys(self, keys: tuple[str, ...]) -> None:
+        """Keep the order of the keys this record was read with (writing keeps it)."""
+        self._keys = tuple(keys)  # type: ignore[misc]
 
     def _present(self) -> list[str]:
         """The keys to write: those read (in order), then attributes set since."""

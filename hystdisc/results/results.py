@@ -32,9 +32,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import hystdisc.results.text as text
 from hystdisc.errors import HystdiscError
 from hystdisc.models import TermModel
-from hystdisc.results import text
 from hystdisc.results.record import Record, SchemaError, list_of, record_of, round_json, table_of
 from hystdisc.results.records import (
     DiagnosisRound,
