@@ -9,7 +9,8 @@ the torque-side terms are selected by pysindy's STLSQ along a threshold path sco
 (:mod:`~hystdisc.discovery.selection`), and the shapes are compared by BIC. The winner is
 the *discovered structure*. The design matrix of the regression is the pysindy feature
 library :class:`TorqueLibrary` (:mod:`~hystdisc.discovery.library`,
-:mod:`~hystdisc.discovery.design`). See doc/design.rst, section 3.
+:mod:`~hystdisc.discovery.design`). See doc/design.rst, sections 3 (the terms) and 4 (the
+pipeline, step 3).
 
 Modules
 -------

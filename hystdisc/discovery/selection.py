@@ -3,7 +3,7 @@
 The shape constants are found by variable projection (:func:`~hystdisc.discovery.varpro.
 varpro`), the torque terms are selected by pysindy's STLSQ along a threshold path scored
 by the BIC (:func:`hystdisc.stats.bic`, on the effective number of samples), and the shape
-is re-optimized with the selected terms (see doc/design.rst, section 3).
+is re-optimized with the selected terms (see doc/design.rst, section 4, step 3).
 """
 
 from __future__ import annotations
