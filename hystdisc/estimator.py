@@ -41,9 +41,16 @@ from threadpoolctl import threadpool_limits
 
 from hystdisc.closing import LoopResult, close_loop
 from hystdisc.data import Dataset, distinct_currents, estimate_noise, trim_release, validate
-from hystdisc.discovery.differentiation import differentiate
-from hystdisc.discovery.library import DEFAULT_TORQUE_TERMS, FAMILY_SHAPE, SHAPES
-from hystdisc.discovery.stage1 import EqData, describe_structure, family_start, fit_shape
+from hystdisc.discovery import (
+    DEFAULT_TORQUE_TERMS,
+    FAMILY_SHAPE,
+    SHAPES,
+    EqData,
+    describe_structure,
+    differentiate,
+    family_start,
+    fit_shape,
+)
 from hystdisc.errors import HystdiscError, HystdiscWarning
 from hystdisc.fitting import (
     FamilyParametrization,

@@ -22,7 +22,7 @@ from hystdisc.closing import (
     score_effects,
 )
 from hystdisc.data import Dataset, Run
-from hystdisc.discovery.library import FAMILY_SHAPE
+from hystdisc.discovery import FAMILY_SHAPE
 from hystdisc.estimator import Discovery
 from hystdisc.fitting import FamilyParametrization, FitData
 from hystdisc.fitting.predict import predict_dataset

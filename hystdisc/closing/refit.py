@@ -15,7 +15,7 @@ import numpy as np
 
 from hystdisc.closing.scores import EffectScore, with_effects
 from hystdisc.data import distinct_currents
-from hystdisc.discovery.stage1 import family_start
+from hystdisc.discovery import family_start
 from hystdisc.fitting import FitData, OEFit, OutputErrorFitter
 from hystdisc.models import EFFECTS, Z_TORQUE_TERMS
 from hystdisc.stats import bic_change

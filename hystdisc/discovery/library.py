@@ -1,13 +1,19 @@
-"""The term library: named torque-side features on pysindy, and hysteresis-side shapes.
+"""The torque-side term library of stage 1, a pysindy feature library.
 
 The torque side is linear in its coefficients once the latent state ``z`` is known, so it
 is a pysindy feature library (:class:`TorqueLibrary`, a ``BaseFeatureLibrary``) evaluated
 on the state ``[theta, theta_dot, z]`` with the coil current as pysindy's control input
-``u`` (appended as the last column, the way ``pysindy.SINDy`` passes it).
+``u`` (appended as the last column, the way ``pysindy.SINDy`` passes it). It is the
+design matrix of stage 1: :class:`~hystdisc.discovery.design.Design` takes its columns
+from it. The values of a column are those of the term in the one term table,
+:data:`hystdisc.models.TORQUE_TERMS`.
 
-The hysteresis side is nonlinear in a few *shape constants* (a rate, an exponent); each
-candidate :class:`HysteresisShape` turns its shape constants into the coefficient vector
-of the hysteretic rate, from which ``z(t)`` is integrated given the velocity record.
+The shape search evaluates the same design for many ``z``: :meth:`TorqueLibrary.
+transform_z_free` computes the columns that do not depend on ``z`` once, and
+:meth:`TorqueLibrary.refresh_z` rewrites only the ``z`` columns (every ``z`` term is
+linear in ``z``: its value is its value at ``z = 1`` times ``z``).
+
+The hysteresis side (the shapes) is in :mod:`hystdisc.discovery.shapes`.
 
 Examples
 --------
@@ -18,30 +24,27 @@ Examples
 >>> X = np.array([[0.1, 2.0, 0.5, 1.0]])  # theta, theta_dot, z, current
 >>> lib.transform(X).tolist()
 [[0.1, 2.0, 0.5]]
->>> SHAPES["dahl"].vector(np.log([20.0]))
-(array([ 20., -20.,   0.,   0.,   0.]), 1.0)
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import numpy as np
-from pysindy.feature_library.base import BaseFeatureLibrary
+from pysindy.feature_library.base import BaseFeatureLibrary, x_sequence_or_item
+from sklearn.utils.validation import check_is_fitted
 
-from hystdisc.models import (
-    HYSTERESIS_TERM_NAMES,
-    TORQUE_TERM_NAMES,
-    TORQUE_TERMS,
-    Z_TORQUE_TERMS,
-)
+from hystdisc.discovery.shapes import SHAPES
+from hystdisc.models import TORQUE_TERM_NAMES, TORQUE_TERMS, Z_TORQUE_TERMS
 
-#: Exponents searched by discovery (smaller n makes the seed form Dahl-like and the state
-#: non-Lipschitz at z = 0, which no fixed-step search should chase; fit Dahl instead).
-N_RANGE = (0.25, 6.0)
+__all__ = [
+    "DEFAULT_TORQUE_TERMS",
+    "TorqueLibrary",
+    "torque_state",
+    "torque_terms_for",
+]
 
-#: Torque-side terms of the discovery library (DESIGN.md section 3), spring first.
+#: Torque-side terms of the discovery library (doc/design.rst, section 3), spring first.
 DEFAULT_TORQUE_TERMS: tuple[str, ...] = (
     "theta",
     "theta_dot",
@@ -53,152 +56,139 @@ DEFAULT_TORQUE_TERMS: tuple[str, ...] = (
     "i*sign(theta_dot)",
 )
 
+#: Column of each variable in the library's input ``[theta, theta_dot, z, i]``.
+THETA, THETA_DOT, Z, CURRENT = range(4)
+
+
+def torque_state(theta, theta_dot, z, current) -> np.ndarray:
+    """The library's input ``[theta, theta_dot, z, i]`` as an ``(n, 4)`` array.
+
+    Parameters
+    ----------
+    theta, theta_dot, z : array_like
+        Angle, velocity and hysteretic state per sample (``z`` may be a scalar, e.g. 0
+        when only the z-free columns are wanted).
+    current : float or array_like
+        Coil current, per sample or one value for all.
+
+    Examples
+    --------
+    >>> torque_state([0.0, 1.0], [2.0, 3.0], 0.0, 0.5).tolist()
+    [[0.0, 2.0, 0.0, 0.5], [1.0, 3.0, 0.0, 0.5]]
+    """
+    theta = np.asarray(theta, dtype=float)
+    cols = [theta, theta_dot, z, current]
+    return np.column_stack([np.broadcast_to(np.asarray(c, dtype=float), theta.shape) for c in cols])
+
 
 class TorqueLibrary(BaseFeatureLibrary):
     """pysindy feature library of named torque terms of ``[theta, theta_dot, z, i]``.
 
+    Inside ``pysindy.SINDy`` the state is ``[theta, theta_dot, z]`` and the current is the
+    control input ``u``.
+
     Parameters
     ----------
     terms : sequence of str
-        Term names from :data:`hystdisc.models.TORQUE_TERM_NAMES`.
+        Term names from :data:`hystdisc.models.TORQUE_TERM_NAMES`, in column order.
+
+    Attributes
+    ----------
+    n_features_in_ : int
+        4 (``theta, theta_dot, z, i``).
+    n_output_features_ : int
+        Number of terms.
     """
 
     def __init__(self, terms: Sequence[str] = DEFAULT_TORQUE_TERMS) -> None:
         self.terms = terms
 
-    def fit(self, x, y=None):
+    @x_sequence_or_item
+    def fit(self, x_full, y=None) -> TorqueLibrary:
+        """Check the terms and the input's columns ``[theta, theta_dot, z, i]``."""
         unknown = [t for t in self.terms if t not in TORQUE_TERMS]
         if unknown:
-            raise ValueError(f"unknown torque terms {unknown}; known: {TORQUE_TERM_NAMES}")
-        x = np.asarray(x)
-        if x.ndim != 2 or x.shape[1] != 4:
-            raise ValueError("TorqueLibrary expects columns [theta, theta_dot, z, i]")
+            raise ValueError(f"unknown torque terms {unknown}; known: {list(TORQUE_TERM_NAMES)}")
+        for x in x_full:
+            if np.ndim(x) != 2 or np.shape(x)[1] != 4:
+                raise ValueError("TorqueLibrary expects columns [theta, theta_dot, z, i]")
         self.n_features_in_ = 4
         self.n_output_features_ = len(self.terms)
         return self
 
-    def transform(self, x):
-        x = np.asarray(x, dtype=float)
-        th, w, z, i = x[:, 0], x[:, 1], x[:, 2], x[:, 3]
-        return np.column_stack([TORQUE_TERMS[t](th, w, z, i) for t in self.terms])
-
-    def get_feature_names(self, input_features=None) -> list[str]:
-        return list(self.terms)
-
-
-@dataclass(frozen=True)
-class HysteresisShape:
-    """A hysteresis-side candidate: its terms and the map shape constants -> rate coefficients.
-
-    Shape constants are handled in an unconstrained space: rates as ``log`` values, the
-    exponent as ``log n``. The seed-form Bouc-Wen splits ``delta`` as ``beta = phi * delta``,
-    ``gamma = (1 - phi) * delta`` (``z_sat = 1``). The standard form uses an angle instead,
-    ``beta = delta cos(psi)``, ``gamma = delta sin(psi)``, which also covers loops that never
-    saturate (``beta + gamma <= 0``, as in the Noel-Schoukens hysteretic benchmark).
-    """
-
-    name: str
-    terms: tuple[str, ...]
-    shape_names: tuple[str, ...]
-
-    def vector(self, s: np.ndarray) -> tuple[np.ndarray, float]:
-        """Rate coefficients (in ``HYSTERESIS_TERM_NAMES`` order) and exponent for ``s``."""
-        b = np.zeros(len(HYSTERESIS_TERM_NAMES))
-        if self.name == "none":
-            return b, 1.0
-        if self.name == "dahl":
-            rho = float(np.exp(s[0]))
-            b[0], b[1] = rho, -rho
-            return b, 1.0
-        d = self.shape_dict(s)
-        b[0] = d["delta"]
-        b[2] = -d["beta"]
-        b[3 if self.name == "bouc-wen" else 4] = -d["gamma"]
-        return b, d["n"]
-
-    def grid(self, scale: float) -> list[np.ndarray]:
-        """Starting grid of shape constants for a displacement amplitude ``scale``."""
-        if self.name == "none":
-            return [np.zeros(0)]
-        rates = np.log(np.geomspace(0.3, 300.0, 13) / max(scale, 1e-12))
-        if self.name == "dahl":
-            return [np.array([r]) for r in rates]
-        # seed form: phi; standard form: psi (saturating at 0..120 deg and -30 deg, never
-        # saturating at 150, 170 and -70 deg)
-        splits = (
-            (-0.5, 0.0, 0.5, 0.9)
-            if self.name == "bouc-wen"
-            else np.deg2rad((0.0, 45.0, 90.0, 120.0, -30.0, 150.0, 170.0, -70.0))
-        )
+    @x_sequence_or_item
+    def transform(self, x_full) -> list[np.ndarray]:
+        """The terms' values, one column per term (a list of arrays for a list input)."""
+        check_is_fitted(self)
         out = []
-        for r in rates[::2]:
-            for phi in splits:
-                for n in (0.5, 1.0, 2.0):
-                    out.append(np.array([r, phi, np.log(n)]))
+        for x in x_full:
+            th, w, z, i = self._columns(x)
+            F = np.empty((th.size, len(self.terms)))
+            for j, t in enumerate(self.terms):
+                F[:, j] = TORQUE_TERMS[t](th, w, z, i)
+            out.append(F)
         return out
 
-    def clip(self, s: np.ndarray, scale: float) -> np.ndarray:
-        """Keep shape constants in the searched box (rates 0.1..300 per amplitude ``scale``;
-        beyond it z is a sign function, which the Bingham terms already cover)."""
-        s = np.asarray(s, dtype=float).copy()
-        if self.name == "none":
-            return s
-        lo = np.log(0.1 / max(scale, 1e-12))
-        s[0] = np.clip(s[0], lo, lo + np.log(3e3))
-        if self.name == "bouc-wen":
-            s[1] = np.clip(s[1], -3.0, 3.0)
-        elif self.name == "bouc-wen-std":
-            s[1] = np.angle(np.exp(1j * s[1]))  # wrap to (-pi, pi]
-        if self.name != "dahl":
-            s[2] = np.clip(s[2], np.log(N_RANGE[0]), np.log(N_RANGE[1]))
-        return s
+    def transform_z_free(
+        self, x, out: np.ndarray | None = None
+    ) -> tuple[np.ndarray, list[tuple[int, np.ndarray]]]:
+        """The columns that do not depend on ``z``, once for many ``z``.
 
-    def shape_dict(self, s: np.ndarray) -> dict[str, float]:
-        """Shape constants in physical units (``rho`` or ``delta, beta, gamma, n``)."""
-        if self.name == "none":
-            return {}
-        if self.name == "dahl":
-            return {"rho": float(np.exp(s[0]))}
-        delta = float(np.exp(s[0]))
-        if self.name == "bouc-wen-std":
-            beta, gamma = delta * float(np.cos(s[1])), delta * float(np.sin(s[1]))
-        else:
-            beta, gamma = float(s[1]) * delta, (1.0 - float(s[1])) * delta
-        return {
-            "delta": delta,
-            "beta": beta,
-            "gamma": gamma,
-            "n": float(np.clip(np.exp(s[2]), N_RANGE[0], N_RANGE[1])),
-        }
+        The ``z`` column of ``x`` is not read. Follow with :meth:`refresh_z` for each
+        ``z``; the result equals :meth:`transform` with that ``z``.
 
+        Parameters
+        ----------
+        x : ndarray, shape (n, 4)
+            ``[theta, theta_dot, z, i]``.
+        out : ndarray, shape (n, n_terms), optional
+            Where to write the columns (e.g. a view into a larger design matrix).
 
-SHAPES: dict[str, HysteresisShape] = {
-    "none": HysteresisShape("none", (), ()),
-    "dahl": HysteresisShape("dahl", ("theta_dot", "|theta_dot|*z"), ("log_rho",)),
-    "bouc-wen": HysteresisShape(
-        "bouc-wen",
-        ("theta_dot", "theta_dot*|z|^n", "|theta_dot|*z*|z|^n"),
-        ("log_delta", "phi", "log_n"),
-    ),
-    "bouc-wen-std": HysteresisShape(
-        "bouc-wen-std",
-        ("theta_dot", "theta_dot*|z|^n", "|theta_dot|*z*|z|^(n-1)"),
-        ("log_delta", "psi", "log_n"),
-    ),
-}
+        Returns
+        -------
+        F : ndarray
+            The design with its z-free columns filled (``out`` when given); the ``z``
+            columns are left for :meth:`refresh_z`.
+        z_factors : list of (int, ndarray)
+            For each ``z`` column, its index and its value at ``z = 1``.
+        """
+        check_is_fitted(self)
+        th, w, _, i = self._columns(x)
+        F = np.empty((th.size, len(self.terms))) if out is None else out
+        z_factors = []
+        for j, t in enumerate(self.terms):
+            if t in Z_TORQUE_TERMS:
+                # a z term is its z-free factor (1, |theta_dot|, i, i^2) times z
+                z_factors.append((j, TORQUE_TERMS[t](th, w, np.ones_like(th), i)))
+            else:
+                F[:, j] = TORQUE_TERMS[t](th, w, None, i)
+        return F, z_factors
 
-#: Hysteresis shape of each family (LuGre shares Dahl's, on another z scale).
-FAMILY_SHAPE = {
-    "bingham": "none",
-    "dahl": "dahl",
-    "lugre": "dahl",
-    "bouc-wen": "bouc-wen",
-    "bouc-wen-std": "bouc-wen-std",
-}
+    @staticmethod
+    def refresh_z(
+        F: np.ndarray, z: np.ndarray, z_factors: Sequence[tuple[int, np.ndarray]]
+    ) -> np.ndarray:
+        """Write the ``z`` columns of ``F`` (from :meth:`transform_z_free`) for ``z``.
+
+        Returns ``F``, overwritten in place.
+        """
+        for j, factor in z_factors:
+            F[:, j] = factor * z
+        return F
+
+    def get_feature_names(self, input_features=None) -> list[str]:
+        """The term names (the input names are fixed: ``theta, theta_dot, z, i``)."""
+        return list(self.terms)
+
+    @staticmethod
+    def _columns(x) -> tuple[np.ndarray, ...]:
+        """``theta, theta_dot, z, i`` of ``x``, each a contiguous float array."""
+        x = np.asarray(x, dtype=float)
+        return tuple(np.ascontiguousarray(x[:, k]) for k in (THETA, THETA_DOT, Z, CURRENT))
 
 
 def torque_terms_for(shape: str, terms: Sequence[str]) -> list[str]:
     """Drop the z-dependent torque terms when the shape carries no state."""
-    if shape == "none":
+    if not SHAPES[shape].has_state:
         return [t for t in terms if t not in Z_TORQUE_TERMS]
     return list(terms)

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from hystdisc.discovery import SHAPES
 from hystdisc.errors import HystdiscError
 from hystdisc.models import (
     EFFECTS,
@@ -142,8 +143,6 @@ class TermParametrization(Parametrization):
         J0=1.0,
         experiment="release",
     ):
-        from hystdisc.discovery.library import SHAPES
-
         self.shape = SHAPES[shape] if isinstance(shape, str) else shape
         self.torque_terms = list(torque_terms)
         self.experiment = experiment

@@ -1,6 +1,6 @@
 """The model-comparison report: one self-contained HTML file and a Markdown summary beside it.
 
-:func:`write_report` turns a fitted :class:`~hystdisc.discovery.stage1.Discovery` into
+:func:`write_report` turns a fitted :class:`~hystdisc.Discovery` into
 ``report.html`` (figures embedded as base64 PNG, inline CSS, no script and no external
 resource, so it opens offline in any browser) and ``report.md`` (the tables, for version
 control and issue trackers). The sections, each an ``<h2>`` with the id in
