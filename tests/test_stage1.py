@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hystdisc.data.io import estimate_noise
 
+from hystdisc.data import estimate_noise
 from hystdisc.discovery import (
     DEFAULT_TORQUE_TERMS,
     SHAPES,

@@ -13,8 +13,9 @@ from functools import cached_property
 import numpy as np
 
 from hystdisc.discovery.shapes import HysteresisShape
+from hystdisc.models import SIGN_EPS
 from hystdisc.registry import get_experiment
-from hystdisc.simulation.core import SIGN_EPS, concat_runs, integrate_z_flat
+from hystdisc.simulation import concat_runs, integrate_z_flat
 
 
 @dataclass
