@@ -103,7 +103,8 @@ def test_list_of_trajectories():
 
 def _dahl_toy(rho=20.0, n=2000):
     """A Dahl damper at four currents, exact signals: theta, theta_dot, z and the torque."""
-    from hystdisc.simulation import SIGN_EPS, integrate_z
+    from hystdisc.models import SIGN_EPS
+    from hystdisc.simulation import integrate_z
 
     t = np.linspace(0.0, 2.0, n)
     runs = []
