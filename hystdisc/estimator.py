@@ -3,15 +3,21 @@
 Stage 1 (:mod:`hystdisc.discovery`) discovers the torque terms and the hysteresis shape
 by sparse equation-error regression; stage 2 (:mod:`hystdisc.fitting`) fits each
 family's own structure by simulating every run (output error), started from a stage-1
-fit of that structure; the families are compared by BIC and by leave-one-run-out
-held-out RMS, and one is selected (or the declared one kept); the closing loop
+fit of that structure; the families are compared by BIC and by held-out
+RMS (leave one test condition out), and one is selected (or the declared one kept); the closing loop
 (:mod:`hystdisc.closing`) adds the catalogued effects the residual asks for; the
 results layer writes the record.
 
-Selection: the family with the lowest BIC wins, except that every family within
-:data:`SELECTION_TIE_BIC` (2) of the lowest is a tie, resolved towards the fewest
-parameters (nested families). Families whose BIC lies within :data:`EQUAL_FIT_BIC` (6)
-of the selected one are reported as fitting equally well (``equal_fits_``).
+Selection: a conclusion counts only if it predicts data the fit did not see, with
+physically admissible parameters. The candidates are the families that are admissible
+(they dissipate energy and their spring stiffens over twice the training envelope; all
+families when none is) and whose held-out error (leave one test condition out, or one
+run) is not clearly worse than the best one's (within :data:`HELDOUT_CLEARLY_WORSE`);
+among them the lowest BIC wins, except that every family within :data:`SELECTION_TIE_BIC`
+(2) of the lowest is a tie, resolved towards the fewest parameters (nested families).
+When BIC alone would have chosen another family, ``selection_note_`` says so. Families
+whose BIC lies within :data:`EQUAL_FIT_BIC` (6) of the selected one are reported as
+fitting equally well (``equal_fits_``).
 
 :class:`Discovery` follows the scikit-learn contract: ``__init__`` only stores its
 arguments (``get_params``/``set_params``/``sklearn.base.clone`` work), :meth:`~Discovery.fit`
@@ -41,6 +47,8 @@ from threadpoolctl import threadpool_limits
 
 from hystdisc.closing import LoopResult, close_loop
 from hystdisc.data import Dataset, distinct_currents, estimate_noise, trim_release, validate
+from hystdisc.data.conditions import detect_conditions
+from hystdisc.data.envelope import Envelope
 from hystdisc.discovery import (
     DEFAULT_TORQUE_TERMS,
     FAMILY_SHAPE,
@@ -63,6 +71,7 @@ from hystdisc.fitting import (
 from hystdisc.models import FAMILIES, format_equation, get_family
 from hystdisc.registry import experiment_names, family_names, get_experiment
 from hystdisc.results import build_results
+from hystdisc.simulation.admissibility import check_admissible
 from hystdisc.stats import samples_per_cycle
 
 #: Default upper limit of the threads of one discovery.
@@ -72,6 +81,9 @@ _SAY_LOCK = threading.Lock()
 SELECTION_TIE_BIC = 2.0
 #: Families whose BIC lies within this of the selected one "fit equally well".
 EQUAL_FIT_BIC = 6.0
+#: A family whose held-out RMS exceeds the best family's by more than this factor is not
+#: selected on BIC alone.
+HELDOUT_CLEARLY_WORSE = 1.1
 
 
 def _n_threads(n_jobs: int | None) -> int:
@@ -140,7 +152,9 @@ class Discovery(BaseEstimator):
     ensemble : bool
         Also estimate inclusion probabilities with pysindy's ``EnsembleOptimizer``.
     heldout : bool
-        Compute leave-one-run-out held-out RMS.
+        Compute each family's held-out RMS (leave one test condition out, or one run)
+        for the family table and the selection. The closing loop judges effects on
+        held-out data whatever this says.
     seed : int
         Seed for the ensemble resampling.
     verbose : int
@@ -177,7 +191,17 @@ class Discovery(BaseEstimator):
     window_ : int
         Smoothing window of the derivatives, in samples of the decimated stage-1 grid.
     fit_data_ : FitData
-        The runs as the output-error fits saw them.
+        The runs as the output-error fits saw them (with each run's test condition).
+    conditions_ : list of str
+        Each run's test condition: given by the data (a ``condition`` column) or detected
+        (runs that share a sine, a release angle or an input record). Held-out errors
+        leave one condition out at a time (one run when all runs share one condition).
+    envelope_ : Envelope
+        What the training runs covered (displacement, velocity, current, duration).
+    admissibility_ : dict of str to Admissibility
+        Each family's physical admissibility over twice the envelope.
+    selection_note_ : str or None
+        Why the selected family is not the one BIC alone would have chosen.
     eq_data_ : EqData
         The equation-error (stage 1) data.
     stage1_ : dict of str to ShapeFit
@@ -204,6 +228,8 @@ class Discovery(BaseEstimator):
         The selected family with every accepted effect (its own fit without the loop).
     effects_ : list of str
         The accepted effects.
+    final_admissibility_ : Admissibility
+        The final model's admissibility (a loud warning when it fails).
     results_ : Results
         The ``results.json`` contract.
 
@@ -350,6 +376,11 @@ class Discovery(BaseEstimator):
             fd.theta_dot.append(d.theta_dot)
             fd.u.append(np.asarray(r.input, dtype=float) if exp.has_input else np.zeros(r.t.size))
             fd.mask.append(m if exp.motion_imposed else np.ones(r.t.size, dtype=bool))
+        given = [r.condition for r in runs]
+        if all(c is not None for c in given):
+            fd.conditions = [str(c) for c in given]
+        else:  # from the smoothed motion (or the input record) of each run
+            fd.conditions = detect_conditions(exp, eq_t, eq_th, [r.input for r in runs])
         scale = float(np.median([np.ptp(th) / 2 for th in eq_th])) or 1.0
         # the smoothed signals are band-limited by the window: decimate the equation-error
         # stage (z is still integrated with sub-steps on the decimated grid)
@@ -440,6 +471,7 @@ class Discovery(BaseEstimator):
         self.currents_ = fd.currents
         self.window_ = eq.window
         self.eq_data_, self.fit_data_ = eq, fd
+        self.conditions_ = list(fd.conditions)
 
         # stage 1
         terms = list(self.torque_terms)
@@ -498,11 +530,12 @@ class Discovery(BaseEstimator):
         self.family_fits_: dict[str, OEFit] = dict(zip(fams, fits, strict=False))
         self.discovered_fit_ = self.family_fits_[same[0]] if same else fits[-1]
 
-        # selection: lowest BIC; within SELECTION_TIE_BIC of it, fewest parameters wins
+        self.envelope_ = Envelope.from_runs(fd.names, fd.t, fd.theta, fd.theta_dot, fd.currents)
+        self.admissibility_ = {
+            n: check_admissible(f.term_model, self.envelope_) for n, f in self.family_fits_.items()
+        }
+        self.family_, self.selection_note_ = self._select()
         bics = {n: f.bic for n, f in self.family_fits_.items()}
-        bmin = min(bics.values())
-        close = [n for n, b in bics.items() if b - bmin < SELECTION_TIE_BIC]
-        self.family_ = min(close, key=lambda n: (self.family_fits_[n].n_params, bics[n]))
         self.equal_fits_ = sorted(
             n
             for n, b in bics.items()
@@ -520,13 +553,49 @@ class Discovery(BaseEstimator):
                 eq,
                 self._stage1_shape(selected),
                 max_nfev=self.max_nfev,
-                heldout=bool(self.heldout) and selected.heldout_rms is not None,
+                heldout=True,
                 progress=say,
+                envelope=self.envelope_,
             )
         self.final_fit_ = selected if self.loop_ is None else self.loop_.fit
         self.effects_ = [] if self.loop_ is None else list(self.loop_.effects)
+        self.final_admissibility_ = check_admissible(self.final_fit_.term_model, self.envelope_)
+        if not self.final_admissibility_.ok:
+            warnings.warn(
+                f"{dataset.source}: THE RESULT IS NOT PHYSICAL: "
+                f"{'; '.join(self.final_admissibility_.violations)}; do not use the model "
+                "beyond the training data (fix: see the family table for an admissible family)",
+                HystdiscWarning,
+                stacklevel=2,
+            )
         self.results_ = build_results(self, dataset)
         return self
+
+    def _select(self) -> tuple[str, str | None]:
+        """The selected family and, when BIC alone would have chosen another, why not."""
+        fits = self.family_fits_
+        bics = {n: f.bic for n, f in fits.items()}
+
+        def by_bic(names):
+            bmin = min(bics[n] for n in names)
+            close = [n for n in names if bics[n] - bmin < SELECTION_TIE_BIC]
+            return min(close, key=lambda n: (fits[n].n_params, bics[n]))
+
+        bic_pick = by_bic(list(fits))
+        pool = [n for n in fits if self.admissibility_[n].ok] or list(fits)
+        held = {n: fits[n].heldout_rms for n in pool if fits[n].heldout_rms is not None}
+        if held:
+            best = min(held.values())
+            pool = [n for n in pool if held.get(n, best) <= HELDOUT_CLEARLY_WORSE * best]
+        pick = by_bic(pool)
+        if pick == bic_pick:
+            return pick, None
+        if not self.admissibility_[bic_pick].ok:
+            why = f"it is not physical ({self.admissibility_[bic_pick].violations[0]})"
+        else:
+            h0, h1 = fits[bic_pick].heldout_rms, fits[pick].heldout_rms
+            why = f"its held-out error {h0:.4g} is {100 * (h0 / h1 - 1):.0f} % above {pick}'s {h1:.4g}"
+        return pick, f"BIC prefers {bic_pick}, but {why}: {pick} selected"
 
     def _check_fitted(self):
         if not hasattr(self, "results_"):

@@ -75,9 +75,11 @@ from hystdisc.closing.residual import (
     natural_frequency,
 )
 from hystdisc.closing.scores import EffectScore, score_effects, wald_chi2
+from hystdisc.data.envelope import Envelope
 from hystdisc.errors import HystdiscError, HystdiscWarning
 from hystdisc.fitting import FamilyParametrization, FitData, OEFit, OutputErrorFitter
 from hystdisc.models import EFFECTS
+from hystdisc.simulation.admissibility import check_admissible
 from hystdisc.stats import masked, sampling_rate
 
 #: Local refits per round at most (two output-error leaders, the equation-error leader);
@@ -154,6 +156,8 @@ def _effect_entry(
         "rms_after": after.rms if pair else step["rms_after"],
         "bic_before": before.bic if pair else step["bic_before"],
         "bic_after": after.bic if pair else step["bic_after"],
+        "heldout_rms_before": before.heldout_rms if pair else step.get("heldout_rms_before"),
+        "heldout_rms_after": after.heldout_rms if pair else step.get("heldout_rms_after"),
         "evidence": step["evidence"],
         "evidence_eq": step.get("evidence_eq"),
     }
@@ -226,8 +230,11 @@ def _backward(data, fit, out: LoopResult, max_nfev, heldout, say, fits: dict) ->
 class _Round:
     """The refits of one round of :func:`augment` (by effect: the best refit and its record)."""
 
-    def __init__(self, data, current, round_no, max_nfev, heldout, noise_std, say):
+    def __init__(self, data, current, round_no, max_nfev, heldout, noise_std, say, envelope):
         self.data = data
+        self.envelope = envelope
+        #: candidates the data want with an inadmissible sign (reported, not refitted)
+        self.pointers: list[dict] = []
         self.noise_std = noise_std
         good_rms = NOISE_RATIO * noise_std
         self.current = current
@@ -238,9 +245,40 @@ class _Round:
         self.say = say
         self.results: dict[str, tuple[OEFit, dict]] = {}
 
+    def point(self, s: EffectScore) -> bool:
+        """Record ``s`` as a pointer to other physics when the data want its parameters
+        outside their admissible bounds (then it is not refitted); True if so."""
+        eff = EFFECTS[s.name]
+        bad = eff.inadmissible(s.estimate)
+        if not bad:
+            return False
+        wants = ", ".join(f"{k} = {s.estimate[k]:.3g}" for k in bad)
+        self.pointers.append(
+            {
+                "name": s.name,
+                "round": self.round_no,
+                "evidence": s.evidence,
+                "evidence_eq": s.evidence_eq,
+                "rms_before": self.current.rms,
+                "rms_after": None,
+                "bic_before": self.current.bic,
+                "bic_after": None,
+                "heldout_rms_before": self.current.heldout_rms,
+                "heldout_rms_after": None,
+                "accepted": False,
+                "admissible": False,
+                "points_at": eff.hint,
+                "note": f"the data want {wants}, which is not physical: this points at "
+                f"{eff.hint or 'physics the catalogue lacks'}",
+            }
+        )
+        return True
+
     def attempt(self, s: EffectScore, start: dict | None = None) -> None:
         """Refit the current model plus ``s``'s effect and record the outcome."""
         cur = self.current
+        if start is None and self.point(s):
+            return
         self.say(f"closing the loop: refit with {s.name} (evidence {s.evidence:.3g})")
         with np.errstate(all="ignore"):
             new = refit_with(
@@ -266,12 +304,20 @@ class _Round:
             "bic_before": cur.bic,
             "bic_after": new.bic if ok else None,
             "wald_chi2": wald if np.isfinite(wald) else None,
+            "heldout_rms_before": cur.heldout_rms,
+            "heldout_rms_after": new.heldout_rms if ok else None,
             "converged": bool(new.success),
             "accepted": False,
             "_ok": ok,
             "_improves": ok and new.bic < cur.bic - EFFECT_BIC_MARGIN,
             "_significant": wald > np.log(new.n_obs),
         }
+        # acceptance by prediction: the held-out error (pooled over folds) must fall too
+        hb, ha = cur.heldout_rms, step["heldout_rms_after"]
+        step["_predicts"] = hb is None or (ha is not None and ha < hb)
+        adm = check_admissible(new.term_model, self.envelope) if ok else None
+        step["admissible"] = bool(adm is None or adm.ok)
+        step["_violation"] = adm.violations[0] if adm is not None and not adm.ok else None
         # share of the excess over the noise that the effect removes
         excess = cur.rss - cur.n_obs * self.noise_std**2
         gain = cur.rss - new.rss if ok else 0.0
@@ -283,8 +329,9 @@ class _Round:
             self.results[s.name] = (new, step)
 
     def best(self) -> tuple[OEFit, dict] | None:
-        """The acceptable refit with the lowest BIC."""
-        ok = [(f, st) for f, st in self.results.values() if st["_improves"] and st["_significant"]]
+        """The acceptable refit with the lowest BIC (better in BIC, significant, better on
+        held-out data, physically admissible)."""
+        ok = [(f, st) for f, st in self.results.values() if _acceptable(st)]
         return min(ok, key=lambda t: t[0].bic) if ok else None
 
     def done(self) -> bool:
@@ -305,22 +352,57 @@ class _Round:
             self.attempt(pick, start=pick.start)
 
 
+def _acceptable(step: dict) -> bool:
+    return bool(
+        step["_improves"] and step["_significant"] and step["_predicts"] and step["admissible"]
+    )
+
+
+def _rejection(step: dict, improves: bool, step_ok: bool, significant: bool) -> str:
+    """Why a refitted effect was not accepted, naming the test it failed."""
+    if improves and significant and not step["admissible"]:
+        return f"not physical: {step['_violation']}"
+    if improves and significant:
+        hb, ha = step["heldout_rms_before"], step["heldout_rms_after"]
+        after = "diverged" if ha is None else f"{ha:.4g}"
+        return (
+            f"raises the held-out error ({hb:.4g} -> {after}): it improves the fit only on "
+            "the data it was fitted to"
+        )
+    if not improves and step_ok and step["bic_after"] < step["bic_before"] - EFFECT_BIC_MARGIN:
+        return (
+            f"removes only {100 * step['excess_share']:.0f} % of the residual's excess over "
+            "the noise"
+        )
+    if not improves:
+        return "did not lower BIC"
+    wz = np.sqrt(step["wald_chi2"] or 0.0)
+    return f"its parameter is not significant (z = {wz:.2g})"
+
+
 def augment(
     data: FitData,
     fit: OEFit,
     noise_std: float,
     max_nfev: int = 60,
-    heldout: bool = False,
+    heldout: bool = True,
     eq=None,
     progress: Callable[[str], None] | None = None,
     s0: np.ndarray | None = None,
+    envelope: Envelope | None = None,
 ) -> LoopResult:
     """Diagnose, add the effects that improve BIC, and test the final residual.
 
     An effect is accepted when its refit converges to finite values, lowers BIC by more
     than :data:`EFFECT_BIC_MARGIN`, its parameter is significant on its own (squared
-    z-score above ``log N``), and it removes at least :data:`MIN_EXCESS_SHARE` of the
-    residual's excess over the noise. A refit that lowers BIC while the effect's parameter is not
+    z-score above ``log N``), it removes at least :data:`MIN_EXCESS_SHARE` of the
+    residual's excess over the noise, it **lowers the held-out error** (leave one test
+    condition out, pooled over the folds; leave one run out when the runs share one
+    condition), and the model with it is **physically admissible** (it dissipates energy
+    and its spring stiffens over twice the training envelope:
+    :func:`~hystdisc.simulation.admissibility.check_admissible`). An effect the data want
+    with a sign outside its admissible bounds (a negative quadratic damping) is not
+    refitted but reported with what it points at (its :attr:`~hystdisc.models.Effect.hint`). A refit that lowers BIC while the effect's parameter is not
     significant has found a better optimum of the model itself: the model is refitted
     without the effect from there and kept, and the effect is rejected.
 
@@ -337,13 +419,15 @@ def augment(
     max_nfev : int
         Simulation budget of each refit.
     heldout : bool
-        Compute the leave-one-run-out error of the refits.
+        Judge every refit on held-out data too (leave one test condition out).
     eq : EqData, optional
         Equation-error data, for the supplementary ``evidence_eq``.
     progress : callable, optional
         Called with short progress messages.
     s0 : ndarray, optional
         The family's stage-1 shape constants (start of the stage-1 screening's search).
+    envelope : Envelope, optional
+        The training envelope (default: measured on ``data``).
 
     Returns
     -------
@@ -351,6 +435,11 @@ def augment(
         The final fit, the tried/accepted effects, the diagnosis and the residual verdict.
     """
     say = progress or (lambda msg: None)
+    if envelope is None:
+        envelope = Envelope.from_runs(data.names, data.t, data.theta, data.theta_dot, data.currents)
+    heldout = heldout and data.n_runs >= 2
+    if heldout:
+        fit = OutputErrorFitter(data, fit.par, max_nfev=max_nfev).heldout_at(fit)
     floor = accuracy_floor(data)
     noise_std = max(float(noise_std), floor)
     good_rms = NOISE_RATIO * noise_std
@@ -370,7 +459,7 @@ def augment(
         scores = score_effects(data, current, pool, eq=eq)
         diag = {"round": round_no, "candidates": [s.to_dict() for s in scores]}
         out.diagnosis.append(diag)
-        rnd = _Round(data, current, round_no, max_nfev, heldout, noise_std, say)
+        rnd = _Round(data, current, round_no, max_nfev, heldout, noise_std, say, envelope)
         screened = False
         if eq is not None and current.rms > FAR_RATIO * noise_std:
             rnd.screen(eq, scores, diag, s0)  # far from the noise: the global view first
@@ -384,29 +473,24 @@ def augment(
         results = rnd.results
         w = rnd.best()
         for _, step in results.values():
+            acceptable = _acceptable(step)
             step_ok, improves = step.pop("_ok"), step.pop("_improves")
             significant = step.pop("_significant")
+            step.pop("_predicts")
+            violation = step.pop("_violation")
             out.tried.append(step)
             if w is not None and step is w[1]:
                 continue
-            if w is not None and step_ok and improves and significant:
+            if w is not None and acceptable:
                 step["note"] = f"{w[1]['name']} lowered BIC more"
                 continue
             rejected.add(step["name"])
-            if (
-                not improves
-                and step_ok
-                and step["bic_after"] < step["bic_before"] - EFFECT_BIC_MARGIN
-            ):
-                step["note"] = (
-                    f"removes only {100 * step['excess_share']:.0f} % of the residual's excess "
-                    "over the noise"
-                )
-            elif not improves:
-                step["note"] = "did not lower BIC"
-            else:
-                wz = np.sqrt(step["wald_chi2"] or 0.0)
-                step["note"] = f"its parameter is not significant (z = {wz:.2g})"
+            step["_violation"] = violation
+            step["note"] = _rejection(step, improves, step_ok, significant)
+            step.pop("_violation")
+        for step in rnd.pointers:
+            out.tried.append(step)
+            rejected.add(step["name"])
         if w is not None:
             new, step = w
             step["accepted"] = True
@@ -466,8 +550,9 @@ def close_loop(
     s0: np.ndarray | None = None,
     *,
     max_nfev: int = 60,
-    heldout: bool = False,
+    heldout: bool = True,
     progress: Callable[[str], None] | None = None,
+    envelope: Envelope | None = None,
 ) -> LoopResult:
     """Close the loop on the fit of the selected (or declared) family.
 
@@ -490,9 +575,11 @@ def close_loop(
     max_nfev : int
         Simulation budget of each refit.
     heldout : bool
-        Compute the leave-one-run-out error of the refits.
+        Judge every refit on held-out data too (leave one test condition out; the default).
     progress : callable, optional
         Called with short progress messages.
+    envelope : Envelope, optional
+        The training envelope, for the admissibility of the refits.
 
     Returns
     -------
@@ -511,6 +598,7 @@ def close_loop(
             eq=eq,
             progress=progress,
             s0=s0,
+            envelope=envelope,
         )
     except (HystdiscError, np.linalg.LinAlgError, ValueError, FloatingPointError) as exc:
         name = fit.par.family.name if isinstance(fit.par, FamilyParametrization) else "the fit"

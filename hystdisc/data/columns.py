@@ -162,6 +162,20 @@ def current_from_name(
         ) from None
 
 
+def run_condition(values: np.ndarray, linenos: np.ndarray | None, source: str, run: str) -> str:
+    """The condition label of a run from its ``condition`` column (one number per run)."""
+    v = np.asarray(values, dtype=float)
+    if v.size and not np.all(v == v[0]):
+        where = f" (line {int(linenos[int(np.argmax(v != v[0]))])})" if linenos is not None else ""
+        raise input_error(
+            source,
+            f"the condition changes within the run{where}",
+            "give every sample of a run the same condition number",
+            run=run,
+        )
+    return f"{v[0]:g}" if v.size else ""
+
+
 def run_current(values: np.ndarray, linenos: np.ndarray | None, source: str, run: str) -> float:
     """One current per run: the median, if the current is constant within tolerance."""
     lo, hi = float(np.min(values)), float(np.max(values))
@@ -232,6 +246,8 @@ def _group_runs(
                 run=name,
             )
         kw = {k: cols[k][idx] for k in ("torque", "input", "theta_dot") if k in cols}
+        if "condition" in cols:
+            kw["condition"] = run_condition(cols["condition"][idx], lines, source, name)
         runs.append(
             Run(name, cols["t"][idx], cols["theta"][idx], cur, source=source, lines=lines, **kw)
         )

@@ -37,7 +37,16 @@ __all__ = [
 EXPERIMENTS: tuple[str, ...] = registry.experiment_names()
 """Experiment types (``release``, ``driven``, ``forced``), from :mod:`hystdisc.registry`."""
 
-CANONICAL_COLUMNS = ("run", "t", "theta", "current", "torque", "input", "theta_dot")
+CANONICAL_COLUMNS = (
+    "run",
+    "t",
+    "theta",
+    "current",
+    "torque",
+    "input",
+    "theta_dot",
+    "condition",
+)
 """Names of the columns (variables) a data file may provide."""
 
 #: the per-sample signals of a run
@@ -128,6 +137,10 @@ class Run:
         File the run was read from (used in error messages).
     lines : array_like of int, optional
         1-based line number in ``source`` of every sample (used in error messages).
+    condition : str, optional
+        The test condition the run belongs to (runs that share an input: a sine, a release
+        angle, an input record); detected from the data when not given (see
+        :mod:`hystdisc.data.conditions`).
 
     Notes
     -----
@@ -152,6 +165,7 @@ class Run:
     theta_dot: np.ndarray | None = None
     source: str | None = field(default=None, repr=False)
     lines: np.ndarray | None = field(default=None, repr=False)
+    condition: str | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         self.name = str(self.name)

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from hystdisc.data.conditions import condition_folds
 from hystdisc.registry import get_experiment
 from hystdisc.simulation import input_slopes
 from hystdisc.stats import samples_per_cycle
@@ -49,6 +50,7 @@ class FitData:
     hold: str = "cubic"
     du: list[np.ndarray] | None = None  # forced: spline slopes of the input (cached)
     steps: list[int] | None = None  # decimation factor of each run (sub-step caps scale)
+    conditions: list[str] | None = None  # each run's test condition (None: one per run)
     _bulk: FitData | None = field(default=None, init=False, repr=False, compare=False)
     _bulk_done: bool = field(default=False, init=False, repr=False, compare=False)
 
@@ -127,6 +129,7 @@ class FitData:
             self.hold,
             du,
             [q * s for q, s in zip(qs, self.run_steps(), strict=True)],
+            self.conditions,
         )
 
     def subset(self, idx: list[int]) -> FitData:
@@ -146,7 +149,21 @@ class FitData:
             self.hold,
             None if self.du is None else pick(self.du),
             None if self.steps is None else pick(self.steps),
+            None if self.conditions is None else pick(self.conditions),
         )
+
+    def folds(self) -> list[list[int]]:
+        """The runs each held-out fold leaves out: one fold per test condition, or one per
+        run when every run is its own condition or all runs share one (see
+        :func:`hystdisc.data.conditions.condition_folds`)."""
+        labels = self.conditions or [str(k) for k in range(self.n_runs)]
+        return condition_folds(labels)
+
+    @property
+    def heldout_by(self) -> str:
+        """``"condition"`` when the folds leave out whole conditions, else ``"run"``."""
+        folds = self.folds()
+        return "condition" if any(len(f) > 1 for f in folds) else "run"
 
     def n_nuisance(self, state: bool = False) -> int:
         """Nuisance parameters per run (initial state; ``state``: the model has a z)."""

@@ -15,6 +15,7 @@ fit without the held-out run's rows, then a simulation of that run).
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -337,7 +338,7 @@ class OutputErrorFitter:
 
     def fit(self, heldout: bool = True) -> OEFit:
         """Levenberg-Marquardt from the parametrization's start; intervals, BIC and (with
-        ``heldout``) leave-one-run-out errors at the optimum.
+        ``heldout``) held-out errors at the optimum (leave one test condition out, or one run).
 
         Long records are fitted on the decimated data (:meth:`FitData.bulk`) first; the
         fit then continues on every sample until it converges there too, so the result
@@ -506,27 +507,42 @@ class OutputErrorFitter:
                 fit.notes.append(self.heldout_note)
         return fit
 
+    def heldout_at(self, fit: OEFit) -> OEFit:
+        """``fit`` (of this parametrization to this data) with its held-out error, computed
+        at its optimum when it has none (one Jacobian, then :meth:`_heldout`)."""
+        if fit.heldout_rms is not None or self.data.n_runs < 2:
+            return fit
+        v = np.concatenate([np.asarray(fit.x, dtype=float), np.asarray(fit.nuisance).ravel()])
+        rms, preds = self._heldout(v, self.residuals(v), self.jacobian(v))
+        return dataclasses.replace(fit, heldout_rms=rms, heldout_predictions=preds)
+
     def _heldout(self, v, res, Jm, gram=None):
-        """Leave-one-run-out: one Gauss-Newton step without the run's rows, then simulate it."""
+        """Leave one fold out (a test condition, or a run: :meth:`FitData.folds`): one
+        Gauss-Newton step from the joint optimum without the fold's rows, then simulate the
+        fold's runs. Returns the pooled held-out RMS and each run's prediction."""
         x, nu = self._split(v)
-        R = self.data.n_runs
         sq = 0.0
         cnt = 0
-        preds = []
+        preds: list[np.ndarray | None] = [None] * self.data.n_runs
         G = self.gram(Jm) if gram is None else gram
         g = Jm.T @ res
-        for r in range(R):
-            sl = slice(self.row_offsets[r], self.row_offsets[r + 1])
+        for fold in self.data.folds():
+            rows = np.concatenate(
+                [np.arange(self.row_offsets[r], self.row_offsets[r + 1]) for r in fold]
+            )
+            own = np.concatenate(
+                [np.arange(self.npar + r * self.nnu, self.npar + (r + 1) * self.nnu) for r in fold]
+            ).astype(int)
             cols = np.ones(len(v), dtype=bool)
-            cols[self.npar + r * self.nnu : self.npar + (r + 1) * self.nnu] = False
-            # the run's rows touch the parameters and its own initial state only
-            nz = np.r_[: self.npar, self.npar + r * self.nnu : self.npar + (r + 1) * self.nnu]
-            Jr = Jm[sl, nz]
+            cols[own] = False
+            # the fold's rows touch the parameters and its runs' own initial states only
+            nz = np.r_[: self.npar, own]
+            Jr = Jm[rows][:, nz] if len(fold) > 1 else Jm[rows[0] : rows[-1] + 1, nz]
             Go = G.copy()
             Go[np.ix_(nz, nz)] -= Jr.T @ Jr
             Go = Go[np.ix_(cols, cols)]
             go = g.copy()
-            go[nz] -= Jr.T @ res[sl]
+            go[nz] -= Jr.T @ res[rows]
             go = go[cols]
             scale = np.sqrt(np.clip(np.diag(Go), 0, None))
             scale[scale == 0] = 1.0
@@ -537,15 +553,16 @@ class OutputErrorFitter:
             xr = np.clip(vr[: self.npar], self.par.lower, self.par.upper)
             tm = self.par.terms(xr)
             st: list = []
-            pr = simulate_entries(self.data, [tm], [r], [nu[r]], st)[0]
-            if st[0]:
-                self.heldout_note = (
-                    f"the held-out prediction of run {self.data.names[r]} diverged: the fit "
-                    "without that run is unstable there (held-out RMS not reported)"
-                )
-                return None, None
-            e = (pr - self.data.y[r])[self.masks[r]]
-            sq += float(e @ e)
-            cnt += e.size
-            preds.append(pr)
+            out = simulate_entries(self.data, [tm] * len(fold), fold, [nu[r] for r in fold], st)
+            for r, pr, bad in zip(fold, out, st, strict=True):
+                if bad:
+                    self.heldout_note = (
+                        f"the held-out prediction of run {self.data.names[r]} diverged: the fit "
+                        "without that run is unstable there (held-out RMS not reported)"
+                    )
+                    return None, None
+                e = (pr - self.data.y[r])[self.masks[r]]
+                sq += float(e @ e)
+                cnt += e.size
+                preds[r] = pr
         return float(np.sqrt(sq / max(cnt, 1))), preds

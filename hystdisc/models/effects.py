@@ -13,7 +13,25 @@ from hystdisc.models.params import BIG, Param
 
 @dataclass(frozen=True)
 class Effect:
-    """A catalogued physical effect: parameters and the torque terms they add."""
+    """A catalogued physical effect: parameters and the torque terms they add.
+
+    Attributes
+    ----------
+    name : str
+        Catalogue name.
+    params : tuple of Param
+        Its parameters; their bounds are what is physically admissible (a damping or a
+        friction force is not negative).
+    terms : tuple of str
+        The torque terms it adds.
+    doc : str
+        What it is, in one line.
+    to_torque, from_torque : callable
+        Parameters (and the rig spring ``k_s``) to torque coefficients, and back.
+    hint : str
+        What the data point at when they want the effect with a sign outside its
+        admissible bounds (it is then reported, not added).
+    """
 
     name: str
     params: tuple[Param, ...]
@@ -21,9 +39,20 @@ class Effect:
     doc: str
     to_torque: Callable[[Mapping[str, float], float], dict[str, float]]
     from_torque: Callable[[Mapping[str, float], float], dict[str, float]]
+    hint: str = ""
+
+    def inadmissible(self, values: Mapping[str, float]) -> list[str]:
+        """The parameters whose ``values`` lie outside their admissible bounds.
+
+        Examples
+        --------
+        >>> QUADRATIC_DAMPING.inadmissible({"c_q": -1e5}), QUADRATIC_DAMPING.inadmissible({"c_q": 2.0})
+        (['c_q'], [])
+        """
+        return [p.name for p in self.params if not p.lower <= values.get(p.name, 0.0) <= p.upper]
 
 
-def _one_term_effect(name: str, param: Param, term: str, doc: str) -> Effect:
+def _one_term_effect(name: str, param: Param, term: str, doc: str, hint: str = "") -> Effect:
     """An effect whose single parameter is the coefficient of a single torque term."""
     return Effect(
         name,
@@ -32,42 +61,55 @@ def _one_term_effect(name: str, param: Param, term: str, doc: str) -> Effect:
         doc,
         lambda p, ks: {term: p[param.name]},
         lambda c, ks: {param.name: c.get(term, 0.0)},
+        hint,
     )
 
 
-CURRENT_VISCOUS = _one_term_effect(
-    "current_viscous",
-    Param("c_i", "N*m*s/(rad*A)", -BIG, BIG, 0.6, "current-dependent viscous damping"),
-    "i*theta_dot",
-    "viscous damping that grows with current (the seed's finding for Dahl at 1 A)",
+#: The single-term effects: name, parameter (unit, admissible bounds, demo value), the
+#: torque term, what it is, and what a wish for an inadmissible sign points at.
+_ONE_TERM = (
+    (
+        "current_viscous",
+        Param("c_i", "N*m*s/(rad*A)", 0.0, BIG, 0.6, "current-dependent viscous damping"),
+        "i*theta_dot",
+        "viscous damping that grows with current (the seed's finding for Dahl at 1 A)",
+        "a viscous force that falls with current: the family's own current terms overstate "
+        "it, or the current law is not linear",
+    ),
+    (
+        "current_saturation",
+        Param("a_ii", "N*m/A^2", -BIG, BIG, -0.6, "quadratic current dependence of z torque"),
+        "i^2*z",
+        "hysteretic torque not linear in current (saturating field): i^2 * z",
+        "",
+    ),
+    (
+        "coulomb",
+        Param("f_c", "N*m", 0.0, BIG, 0.3, "Coulomb (bearing) friction torque"),
+        "sign(theta_dot)",
+        "dry friction, f_c * sign(theta_dot)",
+        "a force that falls where the velocity reverses: the model's yield force is too "
+        "large at low velocity",
+    ),
+    (
+        "quadratic_damping",
+        Param("c_q", "N*m*s^2/rad^2", 0.0, BIG, 0.3, "quadratic (aerodynamic) damping"),
+        "theta_dot*|theta_dot|",
+        "damping growing with velocity squared, c_q * theta_dot*|theta_dot|",
+        "a damping force that grows less than linearly with velocity (shear thinning, a "
+        "yield force that saturates)",
+    ),
+    (
+        "cubic_stiffness",
+        Param("k_3", "N*m/rad^3", -BIG, BIG, 300.0, "cubic spring stiffness"),
+        "theta^3",
+        "large-angle stiffening of the spring (or gravity), k_3 * theta^3",
+        "",
+    ),
 )
 
-CURRENT_SATURATION = _one_term_effect(
-    "current_saturation",
-    Param("a_ii", "N*m/A^2", -BIG, BIG, -0.6, "quadratic current dependence of z torque"),
-    "i^2*z",
-    "hysteretic torque not linear in current (saturating field): i^2 * z",
-)
-
-COULOMB = _one_term_effect(
-    "coulomb",
-    Param("f_c", "N*m", -BIG, BIG, 0.3, "Coulomb (bearing) friction torque"),
-    "sign(theta_dot)",
-    "dry friction, f_c * sign(theta_dot)",
-)
-
-QUADRATIC_DAMPING = _one_term_effect(
-    "quadratic_damping",
-    Param("c_q", "N*m*s^2/rad^2", -BIG, BIG, 0.3, "quadratic (aerodynamic) damping"),
-    "theta_dot*|theta_dot|",
-    "damping growing with velocity squared, c_q * theta_dot*|theta_dot|",
-)
-
-CUBIC_STIFFNESS = _one_term_effect(
-    "cubic_stiffness",
-    Param("k_3", "N*m/rad^3", -BIG, BIG, 300.0, "cubic spring stiffness"),
-    "theta^3",
-    "large-angle stiffening of the spring (or gravity), k_3 * theta^3",
+CURRENT_VISCOUS, CURRENT_SATURATION, COULOMB, QUADRATIC_DAMPING, CUBIC_STIFFNESS = (
+    _one_term_effect(*row) for row in _ONE_TERM
 )
 
 OFFSET = Effect(

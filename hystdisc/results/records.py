@@ -120,9 +120,15 @@ class FamilyResult(Record):
     bic : float
         Bayesian information criterion of the fit.
     heldout_rms : float or None
-        Leave-one-run-out RMS (None when not computed).
+        Held-out RMS: each test condition (or run) predicted by the fit without it, pooled
+        (None when not computed).
     n_params : int
         Parameters counted by the BIC (initial states included).
+    admissible : bool or None
+        The fitted model dissipates energy and its spring stiffens over twice the training
+        envelope (schema 3; None in older files).
+    violations : list of str
+        Where it does not (empty when admissible).
     missing_terms : list of str
         Discovered terms the family lacks (``dz/dt: `` prefix for the hysteresis side).
     extra_terms : list of str
@@ -148,6 +154,8 @@ class FamilyResult(Record):
     bic: float | None = None
     heldout_rms: float | None = None
     n_params: int | None = None
+    admissible: bool | None = None
+    violations: list[str] = field(default_factory=list)
     missing_terms: list[str] = field(default_factory=list)
     extra_terms: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
@@ -234,6 +242,8 @@ class EffectStep(Record):
         Output-error RMS without and with it.
     bic_before, bic_after : float
         BIC without and with it.
+    heldout_rms_before, heldout_rms_after : float or None
+        Held-out RMS (leave one test condition out) without and with it (schema 3).
     evidence : float
         Share of the residual its signature explained (score test).
     evidence_eq : float or None
@@ -251,6 +261,8 @@ class EffectStep(Record):
     rms_after: float | None = None
     bic_before: float | None = None
     bic_after: float | None = None
+    heldout_rms_before: float | None = None
+    heldout_rms_after: float | None = None
     evidence: float | None = None
     evidence_eq: float | None = None
     extra: dict[str, Any] = field(default_factory=dict, repr=False)
@@ -274,6 +286,13 @@ class EffectTrial(Record):
         RMS of the current model and of the refit (None when the refit failed).
     bic_before, bic_after : float or None
         The same for BIC.
+    heldout_rms_before, heldout_rms_after : float or None
+        The same for the held-out RMS (schema 3).
+    admissible : bool or None
+        The refit is physically admissible (False also for an effect the data want with a
+        non-physical sign, which is not refitted).
+    points_at : str or None
+        For such an effect: the physics its sign points at.
     wald_chi2 : float or None
         Squared z-score of the effect's parameters in the refit.
     converged : bool
@@ -300,6 +319,10 @@ class EffectTrial(Record):
     bic_before: float | None = None
     bic_after: float | None = None
     wald_chi2: float | None = None
+    heldout_rms_before: float | None = None
+    heldout_rms_after: float | None = None
+    admissible: bool | None = None
+    points_at: str | None = None
     converged: bool = True
     accepted: bool = False
     excess_share: float | None = None
@@ -459,6 +482,8 @@ class FinalResult(Record):
     n_params: int | None = None
     converged: bool = True
     notes: list[str] = field(default_factory=list)
+    admissible: bool | None = None
+    violations: list[str] = field(default_factory=list)
     extra: dict[str, Any] = field(default_factory=dict, repr=False)
 
 
