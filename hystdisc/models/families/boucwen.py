@@ -10,14 +10,19 @@ from hystdisc.models.families.base import Family
 from hystdisc.models.params import BIG, Param
 from hystdisc.models.terms import TermModel
 
-#: The torque side, ``T = (alpha_1 + alpha_2 i) z + (c_1 + c_2 i) theta_dot``, of both forms.
-_TORQUE_PARAMS = (
-    Param("alpha_1", "N*m", 0.0, BIG, 0.5, "passive hysteretic torque"),
-    Param("alpha_2", "N*m/A", 0.0, BIG, 1.5, "current-dependent hysteretic torque"),
-    Param("c_1", "N*m*s/rad", 0.0, BIG, 0.5, "passive viscous damping"),
-    Param("c_2", "N*m*s/(rad*A)", 0.0, BIG, 0.6, "current-dependent viscous damping"),
-)
-_DELTA = Param("delta", "1/rad", 1e-12, BIG, 20.0, "initial slope of z against theta")
+
+def _params(beta: float, gamma: float, gamma_shape: str, n: float) -> tuple[Param, ...]:
+    """The parameters of both forms: their demo defaults and the gamma term's shape differ."""
+    return (
+        Param("alpha_1", "N*m", 0.0, BIG, 0.5, "passive hysteretic torque"),
+        Param("alpha_2", "N*m/A", 0.0, BIG, 1.5, "current-dependent hysteretic torque"),
+        Param("c_1", "N*m*s/rad", 0.0, BIG, 0.5, "passive viscous damping"),
+        Param("c_2", "N*m*s/(rad*A)", 0.0, BIG, 0.6, "current-dependent viscous damping"),
+        Param("beta", "1/rad", -BIG, BIG, beta, "shape (theta_dot |z|^n term)"),
+        Param("gamma", "1/rad", -BIG, BIG, gamma, f"shape (|theta_dot| {gamma_shape} term)"),
+        Param("delta", "1/rad", 1e-12, BIG, 20.0, "initial slope of z against theta"),
+        Param("n", "-", 1e-4, 10.0, n, "exponent"),
+    )
 
 
 class BoucWen(Family):
@@ -25,13 +30,7 @@ class BoucWen(Family):
 
     name = "bouc-wen"
     title = "Bouc-Wen (seed form)"
-    params = (
-        *_TORQUE_PARAMS,
-        Param("beta", "1/rad", -BIG, BIG, 10.0, "shape (theta_dot |z|^n term)"),
-        Param("gamma", "1/rad", -BIG, BIG, 10.0, "shape (|theta_dot| z |z|^n term)"),
-        _DELTA,
-        Param("n", "-", 1e-4, 10.0, 1.0, "exponent"),
-    )
+    params = _params(beta=10.0, gamma=10.0, gamma_shape="z |z|^n", n=1.0)
     normalization = "z_sat = 1 (delta = beta + gamma)"
     current_params = ("alpha_2", "c_2")
     torque_terms = ("theta_dot", "i*theta_dot", "z", "i*z")
@@ -106,13 +105,7 @@ class BoucWenStd(BoucWen):
 
     name = "bouc-wen-std"
     title = "Bouc-Wen (standard form)"
-    params = (
-        *_TORQUE_PARAMS,
-        Param("beta", "1/rad", -BIG, BIG, 5.0, "shape (theta_dot |z|^n term)"),
-        Param("gamma", "1/rad", -BIG, BIG, 15.0, "shape (|theta_dot| z |z|^(n-1) term)"),
-        _DELTA,
-        Param("n", "-", 1e-4, 10.0, 2.0, "exponent"),
-    )
+    params = _params(beta=5.0, gamma=15.0, gamma_shape="z |z|^(n-1)", n=2.0)
     hysteresis_terms = ("theta_dot", "theta_dot*|z|^n", "|theta_dot|*z*|z|^(n-1)")
     _gamma_term = "|theta_dot|*z*|z|^(n-1)"
     gamma_extra_degree = 0
