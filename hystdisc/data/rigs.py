@@ -16,14 +16,9 @@ from typing import Any
 
 from hystdisc.data.columns import check_column_map, valid_rate
 from hystdisc.data.dataset import check_experiment
-from hystdisc.data.text import read_text
+from hystdisc.data.text import parse_toml, read_text
 from hystdisc.data.units import unit_factor
 from hystdisc.errors import input_error
-
-try:  # Python >= 3.11
-    import tomllib
-except ModuleNotFoundError:  # pragma: no cover - Python 3.10
-    import tomli as tomllib  # type: ignore[no-redef]
 
 __all__ = ["normalize_rig", "read_rig"]
 
@@ -176,11 +171,4 @@ def read_rig(path: str | os.PathLike[str]) -> dict[str, Any]:
     ('driven', {'t': 0, 'theta': 1, 'torque': 3}, '(\\\\d+(?:x\\\\d+)?)A$')
     """
     source = str(path)
-    text = read_text(path)
-    try:
-        raw = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise input_error(
-            source, f"is not valid TOML ({exc})", "fix the syntax at the place shown"
-        ) from None
-    return normalize_rig(raw, source)
+    return normalize_rig(parse_toml(read_text(path), source), source)

@@ -18,16 +18,24 @@ import csv
 import os
 from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from hystdisc.errors import input_error
 
+try:  # Python >= 3.11
+    import tomllib
+except ModuleNotFoundError:  # pragma: no cover - Python 3.10
+    import tomli as tomllib  # type: ignore[no-redef]
+
 __all__ = [
+    "check_finite",
     "count",
     "data_lines",
     "guess_delimiter",
     "parse_floats",
+    "parse_toml",
     "read_bytes",
     "read_text",
     "split_rows",
@@ -108,6 +116,22 @@ def read_text(path: str | os.PathLike[str], hint: str = "") -> str:
             source,
             f"is not valid UTF-8 text (byte 0x{data[exc.start]:02x} on line {line})",
             "re-save the file with UTF-8 encoding",
+        ) from None
+
+
+def parse_toml(text: str, source: str) -> dict[str, Any]:
+    """The table of a TOML text, or a one-line error that points at the syntax error.
+
+    Examples
+    --------
+    >>> parse_toml('fs = 1000', "rig.toml")
+    {'fs': 1000}
+    """
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise input_error(
+            source, f"is not valid TOML ({exc})", "fix the syntax at the place shown"
         ) from None
 
 
