@@ -51,9 +51,9 @@ EFFECTS: dict[str, str] = {
 
 #: Experiment name -> ``module:attribute`` of its experiment object.
 EXPERIMENTS: dict[str, str] = {
-    "release": "hystdisc.experiments.release:RELEASE",
-    "driven": "hystdisc.experiments.driven:DRIVEN",
-    "forced": "hystdisc.experiments.forced:FORCED",
+    "release": "hystdisc.experiments.catalog:RELEASE",
+    "driven": "hystdisc.experiments.catalog:DRIVEN",
+    "forced": "hystdisc.experiments.catalog:FORCED",
 }
 
 _ALIASES = {"boucwen": "bouc-wen", "bw": "bouc-wen", "boucwen-std": "bouc-wen-std"}

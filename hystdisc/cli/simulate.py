@@ -21,6 +21,15 @@ from hystdisc.errors import HystdiscError
 HELP = "write a synthetic dataset of a known model (long CSV)"
 
 
+def add_model_options(p: argparse.ArgumentParser, set_help: str, effect_help: str) -> None:
+    """The repeatable ``--set NAME=VALUE`` and ``--effect NAME[:P=V,...]`` (read with
+    :func:`parse_assignments` and :func:`parse_effect`)."""
+    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", help=set_help)
+    p.add_argument(
+        "--effect", action="append", default=[], metavar="NAME[:P=V,...]", help=effect_help
+    )
+
+
 def add_parser(sub: Any) -> argparse.ArgumentParser:
     """Register ``hystdisc simulate``."""
     p = sub.add_parser(
@@ -37,36 +46,30 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
         ),
     )
     p.add_argument("--model", help=f"family: {', '.join(registry.family_names())}")
-    p.add_argument(
-        "--set",
-        action="append",
-        default=[],
-        metavar="NAME=VALUE",
-        help="a model or rig parameter, e.g. k_s=158 (repeatable; or comma separated)",
-    )
-    p.add_argument(
-        "--effect",
-        action="append",
-        default=[],
-        metavar="NAME[:P=V,...]",
-        help="add a catalogued effect, e.g. coulomb or coulomb:f_c=0.5 (repeatable)",
+    add_model_options(
+        p,
+        "a model or rig parameter, e.g. k_s=158 (repeatable; or comma separated)",
+        "add a catalogued effect, e.g. coulomb or coulomb:f_c=0.5 (repeatable)",
     )
     p.add_argument("--currents", metavar="LIST", help="coil currents in A, e.g. 0,0.25,0.5,0.75,1")
     release, *others = registry.experiment_names()
     p.add_argument(
         "--experiment", help=f"{release} (default), {', '.join(others[:-1])} or {others[-1]}"
     )
-    p.add_argument("--theta0", metavar="RAD", help="initial angle of release/forced runs")
-    p.add_argument("--duration", metavar="S", help="length of every run in s (default 6)")
-    p.add_argument("--fs", metavar="HZ", help="sampling rate in Hz (default 1000)")
-    p.add_argument(
-        "--noise",
-        metavar="STD",
-        help="noise std of the measured signal: rad (release/forced) or N*m (driven torque)",
-    )
-    p.add_argument("--theta-noise", metavar="STD", help="driven only: noise std of theta in rad")
-    p.add_argument("--seed", metavar="N", help="random seed (default 0)")
-    p.add_argument("--encoder-counts", metavar="N", help="quantize theta to 2*pi/N rad")
+    for flag, metavar, text in (
+        ("--theta0", "RAD", "initial angle of release/forced runs"),
+        ("--duration", "S", "length of every run in s (default 6)"),
+        ("--fs", "HZ", "sampling rate in Hz (default 1000)"),
+        (
+            "--noise",
+            "STD",
+            "noise std of the measured signal: rad (release/forced) or N*m (driven torque)",
+        ),
+        ("--theta-noise", "STD", "driven only: noise std of theta in rad"),
+        ("--seed", "N", "random seed (default 0)"),
+        ("--encoder-counts", "N", "quantize theta to 2*pi/N rad"),
+    ):
+        p.add_argument(flag, metavar=metavar, help=text)
     p.add_argument(
         "--drive",
         action="append",

@@ -13,7 +13,13 @@ from pathlib import Path
 from typing import Any
 
 from hystdisc import registry
-from hystdisc.cli.simulate import _float, _int, parse_assignments, parse_effect
+from hystdisc.cli.simulate import (
+    _float,
+    _int,
+    add_model_options,
+    parse_assignments,
+    parse_effect,
+)
 from hystdisc.errors import HystdiscError
 
 HELP = "plot a model's hysteresis loops while one parameter varies"
@@ -35,12 +41,7 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     p.add_argument(
         "--vary", required=True, metavar="NAME=V1,V2,...", help="parameter and its values"
     )
-    p.add_argument(
-        "--set", action="append", default=[], metavar="NAME=VALUE", help="other parameters"
-    )
-    p.add_argument(
-        "--effect", action="append", default=[], metavar="NAME[:P=V,...]", help="add an effect"
-    )
+    add_model_options(p, "other parameters", "add an effect")
     p.add_argument("--current", default="0", metavar="A", help="coil current (default 0)")
     p.add_argument("--amplitude", default="0.3", metavar="RAD", help="sine amplitude (0.3)")
     p.add_argument("--frequency", default="1.0", metavar="HZ", help="sine frequency (1 Hz)")

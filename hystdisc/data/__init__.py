@@ -23,7 +23,7 @@ The modules, one job each:
 ================  ===========================================================
 ``dataset``       :class:`Run`, :class:`Dataset`, column names, current levels
 ``units``         :func:`unit_factor`: a user's unit to SI
-``text``          reading text files and parsing fields (shared by the readers)
+``text``          reading text files and parsing fields and TOML (shared by the readers)
 ``columns``       from read columns to a Dataset: column map, currents, runs
 ``csvfile``       :func:`read_csv`
 ``table``         :func:`read_table`
@@ -54,6 +54,7 @@ from hystdisc.data.mat import read_mat
 from hystdisc.data.preprocessing import estimate_noise, trim_release
 from hystdisc.data.rigs import read_rig
 from hystdisc.data.table import read_table
+from hystdisc.data.text import parse_toml
 from hystdisc.data.units import unit_factor
 from hystdisc.data.validation import LOCKED_RATIO, MIN_SAMPLES, validate
 from hystdisc.data.writers import atomic_write_bytes, atomic_write_text, write_csv
@@ -73,6 +74,7 @@ __all__ = [
     "distinct_currents",
     "estimate_noise",
     "load",
+    "parse_toml",
     "read_csv",
     "read_mat",
     "read_rig",

@@ -195,6 +195,7 @@ def run_current(values: np.ndarray, linenos: np.ndarray | None, source: str, run
     return med
 
 
+@np.errstate(all="ignore")  # huge currents overflow in the median; checked later
 def build_dataset(
     cols: dict[str, np.ndarray],
     run_ids: Sequence[str] | None,
@@ -205,20 +206,6 @@ def build_dataset(
     default_name: str = "0",
 ) -> Dataset:
     """Group per-sample columns by run id (order of first appearance) into a Dataset."""
-    with np.errstate(all="ignore"):  # huge currents overflow in the median; checked later
-        return _group_runs(cols, run_ids, linenos, source, experiment, current, default_name)
-
-
-def _group_runs(
-    cols: dict[str, np.ndarray],
-    run_ids: Sequence[str] | None,
-    linenos: np.ndarray | None,
-    source: str,
-    experiment: str,
-    current: float | None,
-    default_name: str,
-) -> Dataset:
-    """Split the columns into runs; see :func:`build_dataset`."""
     n = cols["theta"].size
     if n == 0:
         raise input_error(

@@ -3,16 +3,8 @@
 A :class:`Dataset` is several runs of one rig and one experiment type (``release``,
 ``driven`` or ``forced``; the experiment objects in :mod:`hystdisc.experiments` say what
 each one measures). This module also holds the column names every reader uses and the
-grouping of currents into levels (:func:`distinct_currents`).
-
-Examples
---------
->>> import numpy as np
->>> from hystdisc.data import Run, Dataset
->>> t = np.arange(100) / 100.0
->>> ds = Dataset([Run("0", t, np.sin(t), 0.0), Run("1", t, np.sin(t), 0.5)], "release", "demo")
->>> len(ds), ds.measured(), ds.currents.tolist()
-(2, 'theta', [0.0, 0.5])
+grouping of currents into levels (:func:`distinct_currents`). The package's docstring
+(:mod:`hystdisc.data`) shows a dataset built by hand.
 """
 
 from __future__ import annotations

@@ -23,7 +23,7 @@ from hystdisc.data.dataset import (
     extra_columns,
     needed_columns,
 )
-from hystdisc.data.text import count, read_bytes
+from hystdisc.data.text import check_finite, read_bytes
 from hystdisc.data.units import apply_units
 from hystdisc.data.validation import validate
 from hystdisc.errors import input_error
@@ -362,21 +362,9 @@ def _columns(
         if canon == "run":
             run_ids = [f"{v:g}" for v in arr]
             continue
-        _check_finite(arr, label, source)
+        check_finite(arr, source, f"variable {label!r}", lambda k: f"at sample {k}")
         cols[canon] = arr
     return cols, run_ids, current
-
-
-def _check_finite(arr: np.ndarray, label: str, source: str) -> None:
-    bad = ~np.isfinite(arr)
-    if bad.any():
-        k = int(np.argmax(bad))
-        kind = "NaN" if np.isnan(arr[k]) else "inf"
-        raise input_error(
-            source,
-            f"variable {label!r} holds {kind} at sample {k} ({count(int(bad.sum()), 'bad value')})",
-            "remove or fill the missing samples (e.g. interpolate) before loading",
-        )
 
 
 def _time_from_rate(fs: Any, n: int, variables: Mapping[str, Any], source: str) -> np.ndarray:

@@ -16,14 +16,9 @@ from typing import Any
 
 from hystdisc.data.columns import check_column_map, valid_rate
 from hystdisc.data.dataset import check_experiment
-from hystdisc.data.text import read_text
+from hystdisc.data.text import parse_toml, read_text
 from hystdisc.data.units import unit_factor
 from hystdisc.errors import input_error
-
-try:  # Python >= 3.11
-    import tomllib
-except ModuleNotFoundError:  # pragma: no cover - Python 3.10
-    import tomli as tomllib  # type: ignore[no-redef]
 
 __all__ = ["normalize_rig", "read_rig"]
 
@@ -41,21 +36,33 @@ _RIG_KEYS = {
 _CURRENT_KEYS = {"from_name", "decimal", "value"}
 
 
+def _check_settings(
+    table: Any,
+    allowed: set[str],
+    source: str,
+    not_table: tuple[str, str],
+    unknown: tuple[str, str],
+) -> None:
+    """``table`` is a mapping with only ``allowed`` keys; else the error ``not_table``
+    (problem, fix), or an "unknown <unknown[0]> setting(s)" error with fix ``unknown[1]``."""
+    if not isinstance(table, Mapping):
+        raise input_error(source, *not_table)
+    bad = sorted(set(table) - allowed)
+    if bad:
+        raise input_error(
+            source, f"unknown {unknown[0]} setting(s) {', '.join(map(repr, bad))}", unknown[1]
+        )
+
+
 def normalize_rig(rig: Mapping[str, Any], source: str) -> dict[str, Any]:
     """Check a rig description; the settings with defaults (see :func:`read_rig`)."""
-    if not isinstance(rig, Mapping):
-        raise input_error(
-            source,
-            "the rig description must be a table of settings",
-            "see the rig.toml example in the docs",
-        )
-    unknown = sorted(set(rig) - _RIG_KEYS)
-    if unknown:
-        raise input_error(
-            source,
-            f"unknown rig setting(s) {', '.join(map(repr, unknown))}",
-            f"use only {', '.join(sorted(_RIG_KEYS - {'path'}))}",
-        )
+    _check_settings(
+        rig,
+        _RIG_KEYS,
+        source,
+        ("the rig description must be a table of settings", "see the rig.toml example in the docs"),
+        ("rig", f"use only {', '.join(sorted(_RIG_KEYS - {'path'}))}"),
+    )
     out: dict[str, Any] = {
         "experiment": None,
         "columns": {},
@@ -104,19 +111,13 @@ def _rig_current(cur: Any, source: str) -> dict[str, Any]:
     """The ``[current]`` settings given (``value``, ``from_name``, ``decimal``), checked."""
     if isinstance(cur, (int, float)) and not isinstance(cur, bool):
         cur = {"value": cur}
-    if not isinstance(cur, Mapping):
-        raise input_error(
-            source,
-            "[current] must be a table or a number",
-            "write value = 0.5 or from_name = '...'",
-        )
-    bad = sorted(set(cur) - _CURRENT_KEYS)
-    if bad:
-        raise input_error(
-            source,
-            f"unknown [current] setting(s) {', '.join(map(repr, bad))}",
-            "use value, from_name and decimal",
-        )
+    _check_settings(
+        cur,
+        _CURRENT_KEYS,
+        source,
+        ("[current] must be a table or a number", "write value = 0.5 or from_name = '...'"),
+        ("[current]", "use value, from_name and decimal"),
+    )
     out: dict[str, Any] = {}
     if cur.get("value") is not None:
         value = cur["value"]
@@ -170,11 +171,4 @@ def read_rig(path: str | os.PathLike[str]) -> dict[str, Any]:
     ('driven', {'t': 0, 'theta': 1, 'torque': 3}, '(\\\\d+(?:x\\\\d+)?)A$')
     """
     source = str(path)
-    text = read_text(path)
-    try:
-        raw = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise input_error(
-            source, f"is not valid TOML ({exc})", "fix the syntax at the place shown"
-        ) from None
-    return normalize_rig(raw, source)
+    return normalize_rig(parse_toml(read_text(path), source), source)

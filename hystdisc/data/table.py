@@ -98,14 +98,13 @@ def read_table(
             )
         cols["t"] = np.arange(len(rows), dtype=np.float64) / float(fs)
     if "current" not in cols and current is None:
-        if current_from_name is not None:
-            current = _current_in_name(source, current_from_name, decimal)
-        else:
+        if current_from_name is None:
             raise input_error(
                 source,
                 "no coil current given",
                 "set [current] value = ... or from_name = '<regex>' in the rig description",
             )
+        current = _current_in_name(source, current_from_name, decimal)
     apply_units(cols, units, source)
     ds = build_dataset(
         cols, None, linenos, source, exp, current=current, default_name=Path(source).stem

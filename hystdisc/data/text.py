@@ -16,18 +16,26 @@ from __future__ import annotations
 
 import csv
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from hystdisc.errors import input_error
 
+try:  # Python >= 3.11
+    import tomllib
+except ModuleNotFoundError:  # pragma: no cover - Python 3.10
+    import tomli as tomllib  # type: ignore[no-redef]
+
 __all__ = [
+    "check_finite",
     "count",
     "data_lines",
     "guess_delimiter",
     "parse_floats",
+    "parse_toml",
     "read_bytes",
     "read_text",
     "split_rows",
@@ -37,6 +45,36 @@ __all__ = [
 def count(n: int, noun: str) -> str:
     """``n`` and ``noun``, in the plural unless ``n`` is 1 (``"3 bad values"``)."""
     return f"{n} {noun}" + ("" if n == 1 else "s")
+
+
+def check_finite(
+    arr: np.ndarray,
+    source: str,
+    what: str,
+    where: Callable[[int], str],
+    run: str | None = None,
+) -> None:
+    """Raise the one-line error for the first NaN or inf of ``arr``, if it holds any.
+
+    ``what`` names the signal (``"column 'theta'"``), ``where(k)`` the place of sample
+    ``k`` (``"on line 7"``).
+
+    Examples
+    --------
+    >>> check_finite(np.array([0.0, np.nan]), "a.csv", "column 'theta'", lambda k: f"at {k}")
+    Traceback (most recent call last):
+    hystdisc.errors.HystdiscError: a.csv: column 'theta' holds NaN at 1 (1 bad value); fix: ...
+    """
+    bad = ~np.isfinite(arr)
+    if bad.any():
+        k = int(np.argmax(bad))
+        kind = "NaN" if np.isnan(arr[k]) else "inf"
+        raise input_error(
+            source,
+            f"{what} holds {kind} {where(k)} ({count(int(bad.sum()), 'bad value')})",
+            "remove or fill the missing samples (e.g. interpolate) before loading",
+            run=run,
+        )
 
 
 def read_bytes(path: str | os.PathLike[str]) -> bytes:
@@ -81,6 +119,22 @@ def read_text(path: str | os.PathLike[str], hint: str = "") -> str:
         ) from None
 
 
+def parse_toml(text: str, source: str) -> dict[str, Any]:
+    """The table of a TOML text, or a one-line error that points at the syntax error.
+
+    Examples
+    --------
+    >>> parse_toml('fs = 1000', "rig.toml")
+    {'fs': 1000}
+    """
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise input_error(
+            source, f"is not valid TOML ({exc})", "fix the syntax at the place shown"
+        ) from None
+
+
 def data_lines(text: str, skip_rows: int = 0) -> list[tuple[int, str]]:
     """Non-blank, non-comment lines as ``(1-based line number, text)``.
 
@@ -122,15 +176,7 @@ def parse_floats(
                     fix,
                 ) from None
         arr = np.array([float(c) for c in cells], dtype=np.float64)  # pragma: no cover
-    bad = ~np.isfinite(arr)
-    if bad.any():
-        k = int(np.argmax(bad))
-        kind = "NaN" if np.isnan(arr[k]) else "inf"
-        raise input_error(
-            source,
-            f"column {label!r} holds {kind} on line {int(linenos[k])} ({count(int(bad.sum()), 'bad value')})",
-            "remove or fill the missing samples (e.g. interpolate) before loading",
-        )
+    check_finite(arr, source, f"column {label!r}", lambda k: f"on line {int(linenos[k])}")
     return arr
 
 

@@ -18,7 +18,7 @@ import numpy as np
 from hystdisc import registry
 from hystdisc.data.dataset import COLUMN_FLAG, Dataset, Run, distinct_currents
 from hystdisc.data.preprocessing import estimate_noise
-from hystdisc.data.text import count
+from hystdisc.data.text import check_finite
 from hystdisc.errors import HystdiscWarning, input_error
 
 __all__ = ["LOCKED_RATIO", "MIN_SAMPLES", "validate"]
@@ -150,16 +150,7 @@ def _check_finite(run: Run, src: str) -> None:
         arr = getattr(run, key)
         if arr is None:
             continue
-        bad = ~np.isfinite(arr)
-        if bad.any():
-            k = int(np.argmax(bad))
-            kind = "NaN" if np.isnan(arr[k]) else "inf"
-            raise input_error(
-                src,
-                f"column {key!r} holds {kind} on {_where(run, k)} ({count(int(bad.sum()), 'bad value')})",
-                "remove or fill the missing samples (e.g. interpolate) before loading",
-                run=run.name,
-            )
+        check_finite(arr, src, f"column {key!r}", lambda k: f"on {_where(run, k)}", run.name)
 
 
 def _check_time(run: Run, src: str) -> None:

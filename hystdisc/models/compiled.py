@@ -52,6 +52,23 @@ def base_coefficients(tm: TermModel, current: float) -> np.ndarray:
     return c
 
 
+#: Length of :func:`term_vector`: the base coefficients, the 5 hysteresis coefficients and
+#: ``n``. A compiled model's parameter vector starts with it; what the model adds follows.
+TERM_SIZE = N_BASE + 6
+
+
+def term_vector(tm: TermModel, current: float) -> np.ndarray:
+    """The base coefficients of a run (current folded in), the hysteresis coefficients
+    and the exponent ``n``: the start of a compiled model's parameter vector."""
+    return np.concatenate([base_coefficients(tm, current), tm.hysteresis_vector(), [tm.n]])
+
+
+@numba.njit(cache=True, inline="always")
+def vector_rate(p, w, z):
+    """:func:`term_rate` with the hysteresis coefficients and ``n`` of a :func:`term_vector`."""
+    return term_rate(p[N_BASE : TERM_SIZE - 1], p[TERM_SIZE - 1], w, z)
+
+
 @numba.njit(cache=True, inline="always")
 def term_torque(c, th, w, z, eps):
     aw = abs(w)

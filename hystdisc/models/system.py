@@ -37,7 +37,7 @@ from collections.abc import Mapping
 import numba
 import numpy as np
 
-from hystdisc.models.compiled import N_BASE, base_coefficients, term_rate, term_torque
+from hystdisc.models.compiled import N_BASE, TERM_SIZE, term_torque, term_vector, vector_rate
 from hystdisc.models.params import Param, check_params
 from hystdisc.models.terms import SIGN_EPS, TermModel
 from hystdisc.registry import get_experiment
@@ -116,10 +116,8 @@ class StateSpaceModel:
 
 
 # ----------------------------------------------------------------------------- term form
-# p layout: base coefficients (N_BASE, current folded in), hysteresis (5), n, J, eps
-_B0 = N_BASE
-_N = N_BASE + 5
-_J = _N + 1
+# p layout: term_vector (base coefficients, hysteresis, n), J, eps
+_J = TERM_SIZE
 _EPS = _J + 1
 
 
@@ -130,7 +128,7 @@ def _mech_rate(x, u, p, dx):
     uu = u[0] if u.shape[0] > 0 else 0.0
     dx[0] = w
     dx[1] = (uu - term_torque(p[:N_BASE], th, w, z, p[_EPS])) / p[_J]
-    dx[2] = term_rate(p[_B0:_N], p[_N], w, z)
+    dx[2] = vector_rate(p, w, z)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -141,7 +139,7 @@ def _mech_output(x, u, p):
 @numba.njit(cache=True, nogil=True)
 def _driven_rate(x, u, p, dx):
     """Imposed motion ``u = (theta, theta_dot)``: only ``z`` is integrated."""
-    dx[0] = term_rate(p[_B0:_N], p[_N], u[1], x[0])
+    dx[0] = vector_rate(p, u[1], x[0])
 
 
 @numba.njit(cache=True, nogil=True)
@@ -181,9 +179,7 @@ class TermSystem(StateSpaceModel):
         term model carries its coefficients)."""
         tm = self.terms
         J = tm.J if self.experiment.inertia_identifiable else 1.0
-        return np.concatenate(
-            [base_coefficients(tm, current), tm.hysteresis_vector(), [tm.n, J, SIGN_EPS]]
-        )
+        return np.concatenate([term_vector(tm, current), [J, SIGN_EPS]])
 
     def equations(self) -> str:
         return self.terms.equations()

@@ -33,7 +33,7 @@ from collections.abc import Mapping
 import numba
 import numpy as np
 
-from hystdisc.models.compiled import N_BASE, base_coefficients, term_rate, term_torque
+from hystdisc.models.compiled import N_BASE, TERM_SIZE, term_torque, term_vector, vector_rate
 from hystdisc.models.params import BIG, RIG_PARAMS, Param
 from hystdisc.models.system import StateSpaceModel
 from hystdisc.models.terms import SIGN_EPS
@@ -45,10 +45,8 @@ WHEEL_PARAMS = (
     Param("c_w", "N*m*s/rad per unit J", 0.0, BIG, 5.0, "wheel (tyre) damping"),
 )
 
-# p layout: damper base coefficients (N_BASE, no spring), hysteresis (5), n, eps, k_s, m_w, k_w, c_w
-_B0 = N_BASE
-_N = N_BASE + 5
-_EPS = _N + 1
+# p layout: the damper's term_vector (no rig spring in it), eps, k_s, m_w, k_w, c_w
+_EPS = TERM_SIZE
 _KS = _EPS + 1
 
 
@@ -59,7 +57,7 @@ def _rate(x, u, p, dx):
     T = term_torque(p[:N_BASE], th - y, r_dot, z, p[_EPS])
     dx[0] = w
     dx[1] = -p[_KS] * th - T
-    dx[2] = term_rate(p[_B0:_N], p[_N], r_dot, z)
+    dx[2] = vector_rate(p, r_dot, z)
     dx[3] = v
     dx[4] = (T - p[_KS + 2] * y - p[_KS + 3] * v) / p[_KS + 1]
 
@@ -92,8 +90,8 @@ class BeamOnCompliantWheel(StateSpaceModel):
     def run_parameters(self, values: Mapping[str, float], current: float) -> np.ndarray:
         v = self.check(values)
         tm = self.family.to_terms(v)  # the damper alone: no rig spring in its terms
-        tail = [tm.n, SIGN_EPS, v["k_s"], v["m_w"], v["k_w"], v["c_w"]]
-        return np.concatenate([base_coefficients(tm, current), tm.hysteresis_vector(), tail])
+        tail = [SIGN_EPS, v["k_s"], v["m_w"], v["k_w"], v["c_w"]]
+        return np.concatenate([term_vector(tm, current), tail])
 
     def equations(self) -> str:
         return (

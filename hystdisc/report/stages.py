@@ -7,12 +7,7 @@ import numpy as np
 
 from hystdisc.registry import effect_names, get_effect
 from hystdisc.report.markup import FAMILY_COLORS, ci_text, new_figure, num
-from hystdisc.report.signals import (
-    final_fit,
-    fit_label,
-    fit_sampling_rate,
-    masked_residuals,
-)
+from hystdisc.report.signals import final_fit, fit_label, fit_sampling_rate, masked_residuals
 from hystdisc.results import ResidualSummary
 
 

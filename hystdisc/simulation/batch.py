@@ -206,22 +206,6 @@ def driven_shared(
         key = (int(run[e]), float(n[e]), *map(float, b[e]))
         owner[e] = first.setdefault(key, e)
     lead = np.array(sorted(first.values()), dtype=np.int64)
-    if lead.size == ne:
-        return driven_batch(
-            coef,
-            b,
-            n,
-            t,
-            theta,
-            theta_dot,
-            offsets,
-            np.zeros(ne),
-            eps,
-            ratio,
-            min_sub,
-            max_sub,
-            work,
-        )
     lens = np.diff(offsets)
     sub_off = np.zeros(lead.size + 1, dtype=np.int64)
     sub_off[1:] = np.cumsum(lens[lead])

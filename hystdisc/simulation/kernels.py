@@ -3,8 +3,10 @@
 Classical RK4 on the sample grid with a number of sub-steps chosen per sample interval
 from the local stiffness of the state (``|theta'| dg/dz`` for the hysteretic state,
 damping and spring rates for the mechanics), compiled with numba and batched over runs;
-the kernels release the GIL, so independent fits can run on threads. The rate and torque
-equations are the models layer's (:mod:`hystdisc.models.compiled`).
+the kernels release the GIL, so independent fits can run on threads. The batch kernels
+take runs concatenated with ``offsets``, one model (row of ``coef``, ``bb``) and one
+sub-step cap (``max_sub``) per run. The rate and torque equations are the models layer's
+(:mod:`hystdisc.models.compiled`).
 """
 
 from __future__ import annotations
@@ -71,6 +73,12 @@ def _input(ua, ub, ma, mb, f, hold):
     return ua + (ub - ua) * f
 
 
+@numba.njit(cache=True, inline="always")
+def _mech_rate(c, b, n, J, u, th, w, z, eps):
+    """Rates ``(theta', theta'', z')`` of a release/forced rig: ``J theta'' = u - T``."""
+    return w, (u - term_torque(c, th, w, z, eps)) / J, term_rate(b, n, w, z)
+
+
 @numba.njit(cache=True, nogil=True)
 def _mech_batch(
     coef,
@@ -95,19 +103,11 @@ def _mech_batch(
     status,
     work,
 ):
-    """RK4 for release/forced runs, concatenated with ``offsets``; one model per run
-    (``max_sub``: each run's sub-step cap)."""
-    nruns = offsets.shape[0] - 1
-    for r in range(nruns):
-        c = coef[r]
-        b = bb[r]
-        n = nn[r]
-        J = JJ[r]
-        k0 = offsets[r]
-        k1 = offsets[r + 1]
-        th = th0[r]
-        w = w0[r]
-        z = z0[r]
+    """RK4 for release/forced runs, concatenated with ``offsets``; one model per run."""
+    for r in range(offsets.shape[0] - 1):
+        c, b, n, J = coef[r], bb[r], nn[r], JJ[r]
+        k0, k1 = offsets[r], offsets[r + 1]
+        th, w, z = th0[r], w0[r], z0[r]
         th_out[k0] = th
         w_out[k0] = w
         z_out[k0] = z
@@ -126,27 +126,16 @@ def _mech_batch(
                 u1 = _input(ua, ub, ma, mb, s / m, hold)
                 u2 = _input(ua, ub, ma, mb, (s + 0.5) / m, hold)
                 u3 = _input(ua, ub, ma, mb, (s + 1.0) / m, hold)
-                k1t = w
-                k1w = (u1 - term_torque(c, th, w, z, eps)) / J
-                k1z = term_rate(b, n, w, z)
-                tht = th + 0.5 * hs * k1t
-                wt = w + 0.5 * hs * k1w
-                zt = z + 0.5 * hs * k1z
-                k2t = wt
-                k2w = (u2 - term_torque(c, tht, wt, zt, eps)) / J
-                k2z = term_rate(b, n, wt, zt)
-                tht = th + 0.5 * hs * k2t
-                wt = w + 0.5 * hs * k2w
-                zt = z + 0.5 * hs * k2z
-                k3t = wt
-                k3w = (u2 - term_torque(c, tht, wt, zt, eps)) / J
-                k3z = term_rate(b, n, wt, zt)
-                tht = th + hs * k3t
-                wt = w + hs * k3w
-                zt = z + hs * k3z
-                k4t = wt
-                k4w = (u3 - term_torque(c, tht, wt, zt, eps)) / J
-                k4z = term_rate(b, n, wt, zt)
+                k1t, k1w, k1z = _mech_rate(c, b, n, J, u1, th, w, z, eps)
+                k2t, k2w, k2z = _mech_rate(
+                    c, b, n, J, u2, th + 0.5 * hs * k1t, w + 0.5 * hs * k1w, z + 0.5 * hs * k1z, eps
+                )
+                k3t, k3w, k3z = _mech_rate(
+                    c, b, n, J, u2, th + 0.5 * hs * k2t, w + 0.5 * hs * k2w, z + 0.5 * hs * k2z, eps
+                )
+                k4t, k4w, k4z = _mech_rate(
+                    c, b, n, J, u3, th + hs * k3t, w + hs * k3w, z + hs * k3z, eps
+                )
                 th += hs / 6.0 * (k1t + 2.0 * k2t + 2.0 * k3t + k4t)
                 w += hs / 6.0 * (k1w + 2.0 * k2w + 2.0 * k3w + k4w)
                 z += hs / 6.0 * (k1z + 2.0 * k2z + 2.0 * k3z + k4z)
@@ -155,10 +144,9 @@ def _mech_batch(
             z_out[k + 1] = z
             if not (abs(th) < 1e8 and abs(w) < 1e10 and abs(z) < 1e12):
                 status[r] = 1
-                for kk in range(k + 1, k1):
-                    th_out[kk] = np.nan
-                    w_out[kk] = np.nan
-                    z_out[kk] = np.nan
+                th_out[k + 1 : k1] = np.nan
+                w_out[k + 1 : k1] = np.nan
+                z_out[k + 1 : k1] = np.nan
                 break
 
 
@@ -215,15 +203,10 @@ def _driven_batch(
     status,
     work,
 ):
-    """Integrate z under an imposed velocity (linear between samples) and return torque
-    (``max_sub``: each run's sub-step cap)."""
-    nruns = offsets.shape[0] - 1
-    for r in range(nruns):
-        c = coef[r]
-        b = bb[r]
-        n = nn[r]
-        k0 = offsets[r]
-        k1 = offsets[r + 1]
+    """Integrate z under an imposed velocity (linear between samples) and return torque."""
+    for r in range(offsets.shape[0] - 1):
+        c, b, n = coef[r], bb[r], nn[r]
+        k0, k1 = offsets[r], offsets[r + 1]
         z = z0[r]
         z_out[k0] = z
         tq_out[k0] = term_torque(c, th_in[k0], w_in[k0], z, eps)
@@ -247,9 +230,8 @@ def _driven_batch(
             tq_out[k + 1] = term_torque(c, th_in[k + 1], w_in[k + 1], z, eps)
             if not abs(z) < 1e12:
                 status[r] = 1
-                for kk in range(k + 1, k1):
-                    tq_out[kk] = np.nan
-                    z_out[kk] = np.nan
+                tq_out[k + 1 : k1] = np.nan
+                z_out[k + 1 : k1] = np.nan
                 break
 
 

@@ -43,15 +43,10 @@ from typing import Any
 import numpy as np
 
 from hystdisc import registry
-from hystdisc.data import Dataset, Run, write_csv
+from hystdisc.data import Dataset, Run, parse_toml, write_csv
 from hystdisc.errors import HystdiscError
 from hystdisc.models import Model, TermModel
 from hystdisc.simulation import simulate_driven_runs, simulate_mech
-
-try:  # Python >= 3.11
-    import tomllib
-except ModuleNotFoundError:  # pragma: no cover - Python 3.10
-    import tomli as tomllib  # type: ignore[no-redef]
 
 __all__ = [
     "DEFAULT_CURRENTS",
@@ -546,13 +541,7 @@ def load_scenario(path: str | os.PathLike[str]) -> dict[str, Any]:
         raise _scenario_error(
             source, f"cannot be read ({exc.strerror or exc})", "check the path"
         ) from None
-    try:
-        raw = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise _scenario_error(
-            source, f"is not valid TOML ({exc})", "fix the syntax at the place shown"
-        ) from None
-    sc = normalize_scenario(raw, source)
+    sc = normalize_scenario(parse_toml(text, source), source)
     sc["path"] = source
     if "output" in sc:
         sc["output"] = str(Path(path).parent / sc["output"])

@@ -11,21 +11,26 @@ from hystdisc.models.params import BIG, Param
 from hystdisc.models.terms import TermModel
 
 
+def _params(beta: float, gamma: float, gamma_shape: str, n: float) -> tuple[Param, ...]:
+    """The parameters of both forms: their demo defaults and the gamma term's shape differ."""
+    return (
+        Param("alpha_1", "N*m", 0.0, BIG, 0.5, "passive hysteretic torque"),
+        Param("alpha_2", "N*m/A", 0.0, BIG, 1.5, "current-dependent hysteretic torque"),
+        Param("c_1", "N*m*s/rad", 0.0, BIG, 0.5, "passive viscous damping"),
+        Param("c_2", "N*m*s/(rad*A)", 0.0, BIG, 0.6, "current-dependent viscous damping"),
+        Param("beta", "1/rad", -BIG, BIG, beta, "shape (theta_dot |z|^n term)"),
+        Param("gamma", "1/rad", -BIG, BIG, gamma, f"shape (|theta_dot| {gamma_shape} term)"),
+        Param("delta", "1/rad", 1e-12, BIG, 20.0, "initial slope of z against theta"),
+        Param("n", "-", 1e-4, 10.0, n, "exponent"),
+    )
+
+
 class BoucWen(Family):
     """Bouc-Wen in the seed's printed form: dz = -gamma|w| z|z|^n - beta w |z|^n + delta w."""
 
     name = "bouc-wen"
     title = "Bouc-Wen (seed form)"
-    params = (
-        Param("alpha_1", "N*m", 0.0, BIG, 0.5, "passive hysteretic torque"),
-        Param("alpha_2", "N*m/A", 0.0, BIG, 1.5, "current-dependent hysteretic torque"),
-        Param("c_1", "N*m*s/rad", 0.0, BIG, 0.5, "passive viscous damping"),
-        Param("c_2", "N*m*s/(rad*A)", 0.0, BIG, 0.6, "current-dependent viscous damping"),
-        Param("beta", "1/rad", -BIG, BIG, 10.0, "shape (theta_dot |z|^n term)"),
-        Param("gamma", "1/rad", -BIG, BIG, 10.0, "shape (|theta_dot| z |z|^n term)"),
-        Param("delta", "1/rad", 1e-12, BIG, 20.0, "initial slope of z against theta"),
-        Param("n", "-", 1e-4, 10.0, 1.0, "exponent"),
-    )
+    params = _params(beta=10.0, gamma=10.0, gamma_shape="z |z|^n", n=1.0)
     normalization = "z_sat = 1 (delta = beta + gamma)"
     current_params = ("alpha_2", "c_2")
     torque_terms = ("theta_dot", "i*theta_dot", "z", "i*z")
@@ -79,10 +84,14 @@ class BoucWen(Family):
             "c_1": g("theta_dot", 0.0),
             "c_2": g("i*theta_dot", 0.0),
             "beta": beta * s ** (n - 1.0),
-            "gamma": gamma * s**n,
+            "gamma": self._scaled_gamma(gamma, s, n),
             "delta": delta / s,
             "n": n,
         }
+
+    def _scaled_gamma(self, gamma: float, s: float, n: float) -> float:
+        """The gamma of the normalized state ``zn = z / s`` (seed form: ``gamma s^n``)."""
+        return gamma * s**n
 
     def equations(self):
         return (
@@ -96,41 +105,15 @@ class BoucWenStd(BoucWen):
 
     name = "bouc-wen-std"
     title = "Bouc-Wen (standard form)"
-    params = (
-        Param("alpha_1", "N*m", 0.0, BIG, 0.5, "passive hysteretic torque"),
-        Param("alpha_2", "N*m/A", 0.0, BIG, 1.5, "current-dependent hysteretic torque"),
-        Param("c_1", "N*m*s/rad", 0.0, BIG, 0.5, "passive viscous damping"),
-        Param("c_2", "N*m*s/(rad*A)", 0.0, BIG, 0.6, "current-dependent viscous damping"),
-        Param("beta", "1/rad", -BIG, BIG, 5.0, "shape (theta_dot |z|^n term)"),
-        Param("gamma", "1/rad", -BIG, BIG, 15.0, "shape (|theta_dot| z |z|^(n-1) term)"),
-        Param("delta", "1/rad", 1e-12, BIG, 20.0, "initial slope of z against theta"),
-        Param("n", "-", 1e-4, 10.0, 2.0, "exponent"),
-    )
+    params = _params(beta=5.0, gamma=15.0, gamma_shape="z |z|^(n-1)", n=2.0)
     hysteresis_terms = ("theta_dot", "theta_dot*|z|^n", "|theta_dot|*z*|z|^(n-1)")
     _gamma_term = "|theta_dot|*z*|z|^(n-1)"
     gamma_extra_degree = 0
 
-    def from_terms(self, tm):
-        delta = tm.hysteresis.get("theta_dot", 0.0)
-        beta = -tm.hysteresis.get("theta_dot*|z|^n", 0.0)
-        gamma = -tm.hysteresis.get(self._gamma_term, 0.0)
-        n = tm.n
-        g = tm.torque.get
-        s = self.z_sat(delta, beta, gamma, n)
-        if not np.isfinite(s) or s <= 0:
-            s = 1.0
-        # standard form: both shape terms scale as s^(n-1)... after z = s*zn:
+    def _scaled_gamma(self, gamma: float, s: float, n: float) -> float:
+        # standard form: both shape terms scale as s^(n-1) after z = s*zn:
         # dzn = delta/s w - beta s^(n-1) w |zn|^n - gamma s^(n-1) |w| zn |zn|^(n-1)
-        return {
-            "alpha_1": g("z", 0.0) * s,
-            "alpha_2": g("i*z", 0.0) * s,
-            "c_1": g("theta_dot", 0.0),
-            "c_2": g("i*theta_dot", 0.0),
-            "beta": beta * s ** (n - 1.0),
-            "gamma": gamma * s ** (n - 1.0),
-            "delta": delta / s,
-            "n": n,
-        }
+        return gamma * s ** (n - 1.0)
 
     def equations(self):
         return (
