@@ -8,9 +8,10 @@ Example::
 from __future__ import annotations
 
 import argparse
+import warnings
 
 from hystdisc.cli.common import add_data_options, load_data
-from hystdisc.errors import HystdiscError
+from hystdisc.errors import HystdiscError, HystdiscWarning
 
 
 def add_parser(sub) -> argparse.ArgumentParser:
@@ -37,7 +38,7 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
 
     from hystdisc.data import atomic_write_text
-    from hystdisc.fitting.predict import predict_dataset
+    from hystdisc.fitting.predict import beyond_envelope, predict_dataset
     from hystdisc.results import Results
     from hystdisc.simulation import HOLDS
 
@@ -56,6 +57,8 @@ def run(args: argparse.Namespace) -> int:
         raise HystdiscError(
             f"{args.results}: unknown input_hold {hold!r}; fix: use one of {', '.join(HOLDS)}"
         )
+    for line in beyond_envelope(res.envelope, data):
+        warnings.warn(line, HystdiscWarning, stacklevel=1)
     preds = predict_dataset(tm, data, res.experiment, hold)
     meas = data.measured()
     lines = [f"run,t,current,{meas},{meas}_pred"]

@@ -11,10 +11,36 @@ from __future__ import annotations
 import numpy as np
 
 from hystdisc.data import Dataset, estimate_noise
+from hystdisc.data.envelope import Envelope, RunEnvelope
 from hystdisc.discovery.differentiation import differentiate
 from hystdisc.models import TermModel
 from hystdisc.registry import get_experiment
 from hystdisc.simulation import simulate_driven_runs, simulate_mech
+
+
+def beyond_envelope(envelope: dict | None, dataset: Dataset, unit: str = "rad") -> list[str]:
+    """One line per way a record of ``dataset`` leaves the training envelope.
+
+    ``envelope`` is the ``envelope`` entry of ``results.json`` (None: an older file, no
+    check). The velocity is the smoothed derivative discovery uses.
+
+    Examples
+    --------
+    >>> from hystdisc.simulation.synth import generate
+    >>> env = {"runs": [{"name": "0", "current": 0.0, "theta_max": 0.1,
+    ...                  "theta_dot_max": 5.0, "duration": 3.0}]}
+    >>> data = generate("dahl", currents=(0.0,), duration=1.0, theta0=0.3, seed=0)
+    >>> beyond_envelope(env, data)
+    ['run 0: peak displacement 0.299 rad is 3x the largest in training (0.1 rad)']
+    """
+    if not envelope:
+        return []
+    env = Envelope.from_dict(envelope)
+    new = []
+    for r in dataset.runs:
+        d = differentiate(r.t, r.theta, estimate_noise(r.theta, r.fs))
+        new.append(RunEnvelope.measure(r.name, r.t, d.theta, d.theta_dot, r.current))
+    return env.beyond(new, unit=unit)
 
 
 def predict_dataset(

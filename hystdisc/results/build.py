@@ -27,7 +27,9 @@ def _parameters(fit: Any) -> dict:
     return params
 
 
-def family_entry(name: str, fit: Any, discovered_terms: dict) -> dict:
+def family_entry(
+    name: str, fit: Any, discovered_terms: dict, admissibility: Any | None = None
+) -> dict:
     """The ``families`` entry of one family's fit (a plain table of the schema).
 
     Parameters
@@ -38,6 +40,8 @@ def family_entry(name: str, fit: Any, discovered_terms: dict) -> dict:
         Its output-error fit.
     discovered_terms : dict
         ``{"torque": [...], "hysteresis": [...]}`` that stage 1 discovered.
+    admissibility : Admissibility, optional
+        Its physical admissibility (``ok``, ``violations``).
 
     Returns
     -------
@@ -58,6 +62,7 @@ def family_entry(name: str, fit: Any, discovered_terms: dict) -> dict:
         "bic": fit.bic,
         "heldout_rms": fit.heldout_rms,
         "n_params": fit.n_params,
+        **_admissible(admissibility),
         # hysteresis-side names are prefixed: theta_dot and |theta_dot|*z exist on both sides
         "missing_terms": sorted(dt - fam_t) + [f"dz/dt: {t}" for t in sorted(dh - fam_h)],
         "extra_terms": sorted(fam_t - dt) + [f"dz/dt: {t}" for t in sorted(fam_h - dh)],
@@ -67,7 +72,13 @@ def family_entry(name: str, fit: Any, discovered_terms: dict) -> dict:
     }
 
 
-def final_entry(fit: Any, family: str, effects: list[str]) -> dict:
+def _admissible(adm: Any | None) -> dict:
+    if adm is None:
+        return {}
+    return {"admissible": bool(adm.ok), "violations": list(adm.violations)}
+
+
+def final_entry(fit: Any, family: str, effects: list[str], admissibility: Any = None) -> dict:
     """The ``final`` table: the selected family with its accepted effects."""
     return {
         "family": family,
@@ -79,6 +90,7 @@ def final_entry(fit: Any, family: str, effects: list[str]) -> dict:
         "n_params": fit.n_params,
         "converged": fit.success,
         "notes": list(fit.notes),
+        **_admissible(admissibility),
     }
 
 
@@ -98,7 +110,9 @@ def build_results(disc: Any, dataset: Any) -> Results:
     Reads only the estimator's public attributes: ``experiment_``, ``noise_std_``,
     ``terms_``, ``discovered_name_``, ``discovered_shape_``, ``stage1_`` (shape -> object
     with ``terms``, ``bic``, ``inclusion``), ``discovered_fit_``, ``family_fits_``,
-    ``family_``, ``declared_``, ``equal_fits_``, ``fit_data_`` (its ``mask``), ``loop_``
+    ``family_``, ``declared_``, ``equal_fits_``, ``fit_data_`` (its ``mask``, ``names``,
+    ``folds()``, ``heldout_by``), ``conditions_``, ``envelope_``, ``admissibility_``,
+    ``final_admissibility_``, ``selection_note_``, ``loop_``
     (the closing loop's ``LoopResult``, or None when it did not run: ``accepted``,
     ``tried``, ``skipped``, ``diagnosis``, ``unexplained``, ``unexplained_text``,
     ``residual``, ``fit``, ``effects``), the parameters ``input_hold`` and ``seed``, and
@@ -115,7 +129,8 @@ def build_results(disc: Any, dataset: Any) -> Results:
     -------
     Results
     """
-    fams = {n: family_entry(n, f, disc.terms_) for n, f in disc.family_fits_.items()}
+    adm = disc.admissibility_
+    fams = {n: family_entry(n, f, disc.terms_, adm.get(n)) for n, f in disc.family_fits_.items()}
     sel = disc.family_fits_[disc.family_]
     dfit = disc.discovered_fit_
     loop = disc.loop_
@@ -153,6 +168,13 @@ def build_results(disc: Any, dataset: Any) -> Results:
             {"name": r.name, "current": r.current, "samples": int(r.t.size)} for r in dataset.runs
         ],
         "seed": disc.seed,
+        "conditions": {
+            "labels": dict(zip(disc.fit_data_.names, disc.conditions_, strict=True)),
+            "heldout_by": disc.fit_data_.heldout_by,
+            "folds": len(disc.fit_data_.folds()),
+        },
+        "envelope": disc.envelope_.to_dict(),
+        "selection_note": disc.selection_note_,
     }
     if loop is not None:
         data.update(
@@ -161,7 +183,9 @@ def build_results(disc: Any, dataset: Any) -> Results:
                 "effects_skipped": loop.skipped,
                 "diagnosis": loop.diagnosis,
                 "unexplained_text": loop.unexplained_text,
-                "final": final_entry(loop.fit, disc.family_, loop.effects),
+                "final": final_entry(
+                    loop.fit, disc.family_, loop.effects, disc.final_admissibility_
+                ),
             }
         )
     return Results.from_dict(data)

@@ -460,13 +460,18 @@ class FinalResult(Record):
     rms, bic : float
         Its output error and BIC.
     heldout_rms : float or None
-        Its leave-one-run-out RMS.
+        Its held-out RMS (leave one test condition out, or one run).
     n_params : int
         Parameters counted by the BIC.
     converged : bool
         The optimizer's success flag.
     notes : list of str
         Remarks of the fit.
+    admissible : bool or None
+        It dissipates energy and its spring stiffens over twice the training envelope
+        (schema 3).
+    violations : list of str
+        Where it does not.
     extra : dict
         Keys this version does not know (kept on a round trip).
     """

@@ -6,8 +6,11 @@ Follows lmfit's result objects: :meth:`Results.summary` returns the contract as 
 intervals, and ``_repr_html_`` renders tables in a notebook.
 
 The file carries ``schema_version`` (:data:`SCHEMA_VERSION`). Schema 1 is the file of
-hystdisc 0.1 (the same keys, no ``schema_version``); it is read as it is, and written back
-as schema 2. A file of a newer schema is refused. To change the schema: add the attribute
+hystdisc 0.1 (the same keys, no ``schema_version``); schema 2 added ``schema_version``;
+schema 3 added the held-out judging and admissibility (``conditions``, ``envelope``,
+``selection_note``, each family's and the final model's ``admissible`` and
+``violations``, each effect's ``heldout_rms_before``/``heldout_rms_after``). Older files
+are read as they are (the new keys absent) and written back as schema 3. A file of a newer schema is refused. To change the schema: add the attribute
 to its record (with a default, documented), bump :data:`SCHEMA_VERSION`, and migrate older
 tables in :func:`migrate`.
 
@@ -18,7 +21,7 @@ Examples
 ...     "families": {}, "model": {"torque": {"z": 1.0}}, "effects": [], "unexplained": False,
 ...     "residual": {}})
 >>> r.family, r.schema_version, r.model.torque
-('dahl', 2, {'z': 1.0})
+('dahl', 3, {'z': 1.0})
 >>> Results.from_json(r.to_json()).summary() == r.summary()
 True
 >>> list(r.summary())[:3]
@@ -50,7 +53,7 @@ from hystdisc.results.records import (
 )
 
 #: The ``results.json`` schema this version writes (1: hystdisc 0.1, no ``schema_version``).
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 
 _FIX_RERUN = "fix: rerun hystdisc discover --json"
 
@@ -58,7 +61,8 @@ _FIX_RERUN = "fix: rerun hystdisc discover --json"
 def migrate(data: dict) -> dict:
     """A ``results.json`` table of any known schema as a table of :data:`SCHEMA_VERSION`.
 
-    Schema 1 differs only by the missing ``schema_version``.
+    Schema 1 differs only by the missing ``schema_version``; schema 2 by the keys schema 3
+    added (absent: their attributes keep their defaults, None or empty).
 
     Raises
     ------
@@ -68,7 +72,7 @@ def migrate(data: dict) -> dict:
     Examples
     --------
     >>> migrate({"family": "dahl"})
-    {'schema_version': 2, 'family': 'dahl'}
+    {'schema_version': 3, 'family': 'dahl'}
     """
     version = data.get("schema_version", 1)
     if isinstance(version, bool) or not isinstance(version, int) or version < 1:
@@ -134,6 +138,16 @@ class Results(Record):
         The remaining structure in plain words.
     final : FinalResult or None
         The selected family with its accepted effects (None: no loop).
+    conditions : dict or None
+        The test conditions: ``labels`` (run name -> condition), ``heldout_by``
+        (``"condition"`` or ``"run"``: what each held-out fold leaves out) and ``folds``
+        (schema 3).
+    envelope : dict or None
+        What the training runs covered: ``theta_max``, ``theta_dot_max``,
+        ``current_min``, ``current_max`` and each run's (schema 3;
+        :class:`~hystdisc.data.envelope.Envelope`). ``predict`` warns beyond it.
+    selection_note : str or None
+        Why the selected family is not the one BIC alone would have chosen (schema 3).
     extra : dict
         Keys this version does not know (kept on a round trip).
     """
@@ -174,6 +188,9 @@ class Results(Record):
     diagnosis: list[DiagnosisRound] | None = None
     unexplained_text: str | None = None
     final: FinalResult | None = None
+    conditions: dict[str, Any] | None = None
+    envelope: dict[str, Any] | None = None
+    selection_note: str | None = None
     extra: dict[str, Any] = field(default_factory=dict, repr=False)
 
     # ----------------------------------------------------------------- JSON

@@ -25,10 +25,25 @@ def family_table(res: Results) -> str:
     for name, f in res.families.items():
         mark = " *" if name == res.family else ""
         ho = f.heldout_rms
+        flag = "  not physical" if f.admissible is False else ""
         rows.append(
             f"{name + mark:<14}{f.n_params:>7d}{f.rms:>12.4g}{f.rms / noise:>10.3f}"
-            f"{f.bic:>14.1f}{(f'{ho:.4g}' if ho is not None else '-'):>14}"
+            f"{f.bic:>14.1f}{(f'{ho:.4g}' if ho is not None else '-'):>14}{flag}"
         )
+    cond = res.conditions
+    if cond:
+        by = cond.get("heldout_by")
+        what = (
+            f"each of the {cond.get('folds')} test conditions"
+            if by == "condition"
+            else "each run (the runs share one test condition)"
+        )
+        rows.append(f"held-out RMS: {what} predicted by the fit without it")
+    if res.selection_note:
+        rows.append(f"selection: {res.selection_note}")
+    for name, f in res.families.items():
+        for v in f.violations:
+            rows.append(f"{name} is not physical: {v}")
     return "\n".join(rows)
 
 
@@ -56,7 +71,7 @@ def _trial_lines(res: Results) -> list[str]:
         return []
     out = [
         f"  {'effect':<20}{'evidence':>9}{'(eq.)':>8}  {'RMS before -> after':<24}"
-        f"{'BIC change':>11}  verdict"
+        f"{'BIC change':>11}  {'held-out before -> after':<26}verdict"
     ]
     for e in tried:
         dbic = (
@@ -68,9 +83,11 @@ def _trial_lines(res: Results) -> list[str]:
         if not e.accepted and e.note:
             verdict += f" ({e.note})"
         before, after = _num(e.rms_before, ".4g"), _num(e.rms_after, ".4g")
+        hb, ha = _num(e.heldout_rms_before, ".4g"), _num(e.heldout_rms_after, ".4g")
         out.append(
             f"  {e.name:<20}{_num(e.evidence, '.3f'):>9}{_num(e.evidence_eq, '.3f'):>8}  "
-            f"{before + ' -> ' + after:<24}{_num(dbic, '.1f'):>11}  {verdict}"
+            f"{before + ' -> ' + after:<24}{_num(dbic, '.1f'):>11}  {hb + ' -> ' + ha:<26}"
+            f"{verdict}"
         )
     return out
 
@@ -103,9 +120,12 @@ def effects_table(res: Results) -> list[str]:
                 f"{k} = {p.value:.5g} [{_num(p.ci95[0], '.5g')}, {_num(p.ci95[1], '.5g')}]"
                 for k, p in e.parameters.items()
             )
+            held = ""
+            if e.heldout_rms_before is not None and e.heldout_rms_after is not None:
+                held = f", held-out {e.heldout_rms_before:.4g} -> {e.heldout_rms_after:.4g}"
             out.append(
                 f"    {e.name} ({', '.join(e.terms)}): {ps}; RMS "
-                f"{e.rms_before:.4g} -> {e.rms_after:.4g}"
+                f"{e.rms_before:.4g} -> {e.rms_after:.4g}{held}"
             )
     else:
         out.append("  No catalogued effect improves the model.")
@@ -113,10 +133,13 @@ def effects_table(res: Results) -> list[str]:
     if fin:
         noise = res.noise_std
         ratio = f" ({fin.rms / noise:.2f}x the noise)" if noise else ""
+        held = f", held-out {fin.heldout_rms:.4g}" if fin.heldout_rms is not None else ""
         out.append(
             f"  Final model: {' + '.join([fin.family, *fin.effects])}, "
-            f"RMS {fin.rms:.4g}{ratio}, BIC {fin.bic:.1f}"
+            f"RMS {fin.rms:.4g}{ratio}{held}, BIC {fin.bic:.1f}"
         )
+        for v in fin.violations:
+            out.append(f"  WARNING: the final model is not physical: {v}")
     return out
 
 
