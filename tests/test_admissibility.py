@@ -8,6 +8,7 @@ import pytest
 from hystdisc import registry
 from hystdisc.data.conditions import condition_folds, detect_conditions
 from hystdisc.data.envelope import Envelope, RunEnvelope
+from hystdisc.errors import HystdiscError
 from hystdisc.models import Model
 from hystdisc.simulation.admissibility import check_admissible
 from hystdisc.simulation.synth import generate
@@ -69,13 +70,30 @@ def test_random_physical_parameters_are_admissible(family):
 def test_negative_quadratic_damping_is_caught_beyond_the_training_velocity():
     # k_x = 0.8 and c_q = -0.3: the viscous force reverses above |theta_dot| = 2.67,
     # inside twice the training velocity (4) but not within it (2)
-    tm = Model("dahl", effects={"quadratic_damping": {"c_q": -0.3}}).to_terms()
+    # (a negative c_q is outside the effect's bounds: build the term model directly)
+    tm = Model("dahl").to_terms()
+    tm.torque["theta_dot*|theta_dot|"] = -0.3
     assert check_admissible(tm, ENV, factor=1.0).ok
     rep = check_admissible(tm, ENV)
     assert not rep.ok and rep.worst_work < 0
     assert (
         "generates energy" in rep.violations[0] and "2x the training velocity" in rep.violations[0]
     )
+
+
+def test_effects_declare_their_admissible_signs():
+    """Damping and friction effects are not negative; the model refuses them."""
+    for name, param in [
+        ("quadratic_damping", "c_q"),
+        ("coulomb", "f_c"),
+        ("current_viscous", "c_i"),
+    ]:
+        eff = registry.get_effect(name)
+        assert eff.inadmissible({param: -1.0}) == [param]
+        assert eff.inadmissible({param: 1.0}) == []
+        assert eff.hint
+        with pytest.raises(HystdiscError, match=f"parameter {param}=-1 is outside its physical"):
+            Model("dahl", effects={name: {param: -1.0}})
 
 
 def test_softening_spring_is_caught():

@@ -233,8 +233,6 @@ class _Round:
     def __init__(self, data, current, round_no, max_nfev, heldout, noise_std, say, envelope):
         self.data = data
         self.envelope = envelope
-        #: candidates the data want with an inadmissible sign (reported, not refitted)
-        self.pointers: list[dict] = []
         self.noise_std = noise_std
         good_rms = NOISE_RATIO * noise_std
         self.current = current
@@ -245,40 +243,9 @@ class _Round:
         self.say = say
         self.results: dict[str, tuple[OEFit, dict]] = {}
 
-    def point(self, s: EffectScore) -> bool:
-        """Record ``s`` as a pointer to other physics when the data want its parameters
-        outside their admissible bounds (then it is not refitted); True if so."""
-        eff = EFFECTS[s.name]
-        bad = eff.inadmissible(s.estimate)
-        if not bad:
-            return False
-        wants = ", ".join(f"{k} = {s.estimate[k]:.3g}" for k in bad)
-        self.pointers.append(
-            {
-                "name": s.name,
-                "round": self.round_no,
-                "evidence": s.evidence,
-                "evidence_eq": s.evidence_eq,
-                "rms_before": self.current.rms,
-                "rms_after": None,
-                "bic_before": self.current.bic,
-                "bic_after": None,
-                "heldout_rms_before": self.current.heldout_rms,
-                "heldout_rms_after": None,
-                "accepted": False,
-                "admissible": False,
-                "points_at": eff.hint,
-                "note": f"the data want {wants}, which is not physical: this points at "
-                f"{eff.hint or 'physics the catalogue lacks'}",
-            }
-        )
-        return True
-
     def attempt(self, s: EffectScore, start: dict | None = None) -> None:
         """Refit the current model plus ``s``'s effect and record the outcome."""
         cur = self.current
-        if start is None and self.point(s):
-            return
         self.say(f"closing the loop: refit with {s.name} (evidence {s.evidence:.3g})")
         with np.errstate(all="ignore"):
             new = refit_with(
@@ -318,6 +285,10 @@ class _Round:
         adm = check_admissible(new.term_model, self.envelope) if ok else None
         step["admissible"] = bool(adm is None or adm.ok)
         step["_violation"] = adm.violations[0] if adm is not None and not adm.ok else None
+        # the one-step estimate at the current optimum says which sign the data want; the
+        # bounded refit only explores the admissible one
+        bad = EFFECTS[s.name].inadmissible(s.estimate)
+        step["_wants"] = ", ".join(f"{k} = {s.estimate[k]:.3g}" for k in bad) or None
         # share of the excess over the noise that the effect removes
         excess = cur.rss - cur.n_obs * self.noise_std**2
         gain = cur.rss - new.rss if ok else 0.0
@@ -359,25 +330,29 @@ def _acceptable(step: dict) -> bool:
 
 
 def _rejection(step: dict, improves: bool, step_ok: bool, significant: bool) -> str:
-    """Why a refitted effect was not accepted, naming the test it failed."""
-    if improves and significant and not step["admissible"]:
-        return f"not physical: {step['_violation']}"
-    if improves and significant:
-        hb, ha = step["heldout_rms_before"], step["heldout_rms_after"]
-        after = "diverged" if ha is None else f"{ha:.4g}"
-        return (
-            f"raises the held-out error ({hb:.4g} -> {after}): it improves the fit only on "
-            "the data it was fitted to"
-        )
-    if not improves and step_ok and step["bic_after"] < step["bic_before"] - EFFECT_BIC_MARGIN:
-        return (
+    """Why a refitted effect was not accepted: every test it failed, in the order applied."""
+    if not step_ok:
+        return "its refit did not converge to finite values"
+    failed = []
+    lowered = step["bic_after"] < step["bic_before"] - EFFECT_BIC_MARGIN
+    if not lowered:
+        failed.append("did not lower BIC")
+    elif not improves:
+        failed.append(
             f"removes only {100 * step['excess_share']:.0f} % of the residual's excess over "
             "the noise"
         )
-    if not improves:
-        return "did not lower BIC"
-    wz = np.sqrt(step["wald_chi2"] or 0.0)
-    return f"its parameter is not significant (z = {wz:.2g})"
+    if not significant:
+        wz = np.sqrt(step["wald_chi2"] or 0.0)
+        failed.append(f"its parameter is not significant (z = {wz:.2g})")
+    hb, ha = step["heldout_rms_before"], step["heldout_rms_after"]
+    if hb is not None and not (ha is not None and ha < hb):
+        after = "diverged" if ha is None else f"{ha:.4g}"
+        why = ": it improves the fit only on the data it was fitted to" if lowered else ""
+        failed.append(f"does not lower the held-out error ({hb:.4g} -> {after}){why}")
+    if not step["admissible"]:
+        failed.append(f"not physical: {step['_violation']}")
+    return "; ".join(failed)
 
 
 def augment(
@@ -477,7 +452,7 @@ def augment(
             step_ok, improves = step.pop("_ok"), step.pop("_improves")
             significant = step.pop("_significant")
             step.pop("_predicts")
-            violation = step.pop("_violation")
+            violation, wants = step.pop("_violation"), step.pop("_wants")
             out.tried.append(step)
             if w is not None and step is w[1]:
                 continue
@@ -488,9 +463,13 @@ def augment(
             step["_violation"] = violation
             step["note"] = _rejection(step, improves, step_ok, significant)
             step.pop("_violation")
-        for step in rnd.pointers:
-            out.tried.append(step)
-            rejected.add(step["name"])
+            if wants:
+                hint = EFFECTS[step["name"]].hint or "physics the catalogue lacks"
+                step["points_at"] = hint
+                step["note"] = (
+                    f"the data want {wants}, which is not physical: this points at {hint}; "
+                    f"with the admissible sign it {step['note']}"
+                )
         if w is not None:
             new, step = w
             step["accepted"] = True

@@ -516,6 +516,15 @@ class OutputErrorFitter:
         rms, preds = self._heldout(v, self.residuals(v), self.jacobian(v))
         return dataclasses.replace(fit, heldout_rms=rms, heldout_predictions=preds)
 
+    def _at_bounds(self, v: np.ndarray) -> np.ndarray:
+        """Mask of the entries of ``v`` (parameters, then initial states) at a bound."""
+        out = np.zeros(len(v), dtype=bool)
+        x, lo, hi = v[: self.npar], self.par.lower, self.par.upper
+        tol = 1e-6 * np.maximum(np.maximum(np.abs(x), 1e-6), 0.0)
+        with np.errstate(invalid="ignore"):
+            out[: self.npar] = (x - lo <= tol) | (hi - x <= tol)
+        return out
+
     def _heldout(self, v, res, Jm, gram=None):
         """Leave one fold out (a test condition, or a run: :meth:`FitData.folds`): one
         Gauss-Newton step from the joint optimum without the fold's rows, then simulate the
@@ -533,7 +542,7 @@ class OutputErrorFitter:
             own = np.concatenate(
                 [np.arange(self.npar + r * self.nnu, self.npar + (r + 1) * self.nnu) for r in fold]
             ).astype(int)
-            cols = np.ones(len(v), dtype=bool)
+            cols = ~self._at_bounds(v)  # a parameter held at a bound stays there
             cols[own] = False
             # the fold's rows touch the parameters and its runs' own initial states only
             nz = np.r_[: self.npar, own]
