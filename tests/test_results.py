@@ -51,12 +51,12 @@ def test_schema1_file_loads_and_keeps_its_bytes(path):
     old = json.loads(text)
     assert "schema_version" not in old
     res = Results.load(path)
-    assert res.schema_version == SCHEMA_VERSION == 2
+    assert res.schema_version == SCHEMA_VERSION == 3
     summary = res.summary()
     assert list(summary) == ["schema_version", *old]
     assert {k: v for k, v in summary.items() if k != "schema_version"} == old
     # written back: today's bytes with one more line
-    assert res.to_json() == text.replace("{\n", '{\n "schema_version": 2,\n', 1)
+    assert res.to_json() == text.replace("{\n", '{\n "schema_version": 3,\n', 1)
     assert Results.from_json(text).summary() == summary
     # the models are usable
     assert isinstance(res.term_model(), TermModel)
@@ -202,17 +202,32 @@ def test_every_attribute_is_documented():
 
 # ----------------------------------------------------------------------------- a real fit
 
+#: Keys schema 3 added: after ``seed`` at the top, after ``n_params`` in a family, at the
+#: end of ``final``.
+NEW_TOP = ["conditions", "envelope", "selection_note"]
+NEW_FAMILY = ["admissible", "violations"]
+
+
+def _after(keys: list[str], anchor: str, new: list[str]) -> list[str]:
+    k = keys.index(anchor) + 1
+    return [*keys[:k], *new, *keys[k:]]
+
 
 def test_real_fit_has_todays_keys_plus_schema_version(small_fit):
     disc, _ = small_fit
     summary = json.loads(disc.results_.to_json())
     _, old = _schema1("effects")  # written by today's code with the loop
-    assert list(summary) == ["schema_version", *old]
-    assert summary["schema_version"] == 2
+    assert list(summary) == ["schema_version", *_after(list(old), "seed", NEW_TOP)]
+    assert summary["schema_version"] == 3
     for name, fam in summary["families"].items():
-        assert list(fam) == list(old["families"]["dahl"]), name
+        assert list(fam) == _after(list(old["families"]["dahl"]), "n_params", NEW_FAMILY), name
+        assert fam["admissible"] is True and fam["violations"] == []
     assert list(summary["discovered"]) == list(old["discovered"])
-    assert list(summary["final"]) == list(old["final"])
+    assert list(summary["final"]) == [*old["final"], *NEW_FAMILY]
+    for e in summary["effects"]:
+        assert e["heldout_rms_after"] < e["heldout_rms_before"]
+    assert summary["conditions"]["heldout_by"] == "run"
+    assert summary["envelope"]["theta_max"] == pytest.approx(0.3, rel=0.05)
     assert list(summary["residual"]) == list(old["residual"])
     # typed attributes read the same values
     res = disc.results_
@@ -226,5 +241,5 @@ def test_real_fit_without_loop_has_no_loop_keys():
     disc = Discovery(families=["dahl", "bingham"], heldout=True, close_loop=False)
     res = disc.fit(data).results_
     _, old = _schema1("no_loop")
-    assert list(res.summary()) == ["schema_version", *old]
+    assert list(res.summary()) == ["schema_version", *_after(list(old), "seed", NEW_TOP)]
     assert res.residual.rms == pytest.approx(res.families[res.family].rms, rel=1e-6)
