@@ -46,6 +46,7 @@ class ComparisonSections:
                     num(f.bic, ".1f"),
                     num(f.bic - bmin if f.bic is not None else None, ".1f"),
                     num(f.heldout_rms),
+                    {True: "yes", False: "no"}.get(f.admissible, "–"),
                     ", ".join(f.missing_terms) or "–",
                     ", ".join(f.extra_terms) or "–",
                     "yes" if f.converged else "no",
@@ -53,10 +54,14 @@ class ComparisonSections:
             )
         self.p(
             "Every family fitted by output error over all runs jointly; * marks the "
-            f"{'declared' if d.declared else 'selected'} family (lowest BIC; within "
-            "2 of it, the fewest parameters). RMS in data units; held-out RMS is "
-            "leave-one-run-out. 'lacks' lists discovered terms the family does not have, "
+            f"{'declared' if d.declared else 'selected'} family (among the physical "
+            "families whose held-out RMS is within 10 % of the best, the lowest BIC; within "
+            "2 of it, the fewest parameters). RMS in data units; held-out RMS: "
+            + _heldout_text(d)
+            + " 'physical': the model dissipates energy and its spring stiffens over twice "
+            "the training envelope. 'lacks' lists discovered terms the family does not have, "
             "'adds' the family's terms that were not discovered."
+            + (f" Selection: {d.selection_note}." if d.selection_note else "")
         )
         self.table(
             [
@@ -67,12 +72,13 @@ class ComparisonSections:
                 "BIC",
                 "ΔBIC",
                 "held-out RMS",
+                "physical",
                 "lacks",
                 "adds",
                 "converged",
             ],
             rows,
-            left={0, 7, 8},
+            left={0, 8, 9},
             sel=sel,
         )
         fig, axes = new_figure(1, 2, 11, 3.8)
@@ -186,3 +192,14 @@ def _saturation_torque(family: str, params: dict[str, ParameterResult], which: s
     except (KeyError, TypeError, ZeroDivisionError):
         return None
     return None
+
+
+def _heldout_text(d) -> str:
+    """How the held-out RMS was made, in one sentence."""
+    cond = d.conditions or {}
+    if cond.get("heldout_by") == "condition":
+        return (
+            f"each of the {cond.get('folds')} test conditions (runs sharing an input) "
+            "predicted by the fit without it."
+        )
+    return "each run predicted by the fit without it (the runs share one test condition)."

@@ -95,11 +95,28 @@ class StageSections:
                         num(e.rms_before),
                         num(e.rms_after),
                         num(dbic, ".1f"),
+                        num(e.heldout_rms_before),
+                        num(e.heldout_rms_after),
                         verdict,
                     ]
                 )
+            self.p(
+                "An effect is accepted only if it lowers BIC, its parameter is significant, it "
+                "removes a tenth of the residual's excess over the noise, it lowers the "
+                "held-out RMS (data the refit did not see) and the model stays physical."
+            )
             self.table(
-                ["effect tried", "terms", "evidence", "RMS before", "RMS after", "ΔBIC", "verdict"],
+                [
+                    "effect tried",
+                    "terms",
+                    "evidence",
+                    "RMS before",
+                    "RMS after",
+                    "ΔBIC",
+                    "held-out before",
+                    "held-out after",
+                    "verdict",
+                ],
                 rows,
                 left=2,
             )
@@ -128,6 +145,8 @@ class StageSections:
                     ci_text(p.ci95, ".4g"),
                     num(e.rms_before),
                     num(e.rms_after),
+                    num(e.heldout_rms_before),
+                    num(e.heldout_rms_after),
                 ]
                 for e in d.effects
                 for k, p in e.parameters.items()
@@ -141,6 +160,8 @@ class StageSections:
                     "95 % interval",
                     "RMS before",
                     "RMS after",
+                    "held-out before",
+                    "held-out after",
                 ],
                 rows,
                 left=3,

@@ -16,7 +16,8 @@ Examples
 >>> env = Envelope([RunEnvelope("0", 0.0, 0.3, 2.0, 6.0), RunEnvelope("1", 1.0, 0.3, 2.0, 6.0)])
 >>> check_admissible(Model("dahl").to_terms(), env).ok
 True
->>> bad = Model("dahl", effects={"quadratic_damping": {"c_q": -0.5}}).to_terms()
+>>> bad = Model("dahl").to_terms()
+>>> bad.torque["theta_dot*|theta_dot|"] = -0.5  # a negative quadratic damping
 >>> rep = check_admissible(bad, env)
 >>> rep.ok, rep.violations[0]
 (False, 'the damper generates energy in a cycle of amplitude 0.6 at peak velocity 4 (2x the training velocity), current 0 A')
