@@ -47,7 +47,8 @@ def fill_doc(func: F) -> F:
         indent = "\n" + line[: len(line) - len(line.lstrip())]
         return re.sub(r"%\((\w+)\)s", lambda m: DOCS[m[1]].replace("\n", indent), line)
 
-    func.__doc__ = "\n".join(fill(line) for line in (func.__doc__ or "").split("\n"))
+    if func.__doc__:  # None under python -OO
+        func.__doc__ = "\n".join(fill(line) for line in func.__doc__.split("\n"))
     return func
 
 
