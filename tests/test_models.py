@@ -150,3 +150,54 @@ def test_state_space_parameters_are_bounded():
     ]
     for p in wheel.params:
         assert p.lower <= p.default <= p.upper and p.unit
+
+
+B = 1e9  # models.params.BIG
+FAMILY_PARAMS = {  # every family's parameters as they were written before the text tables
+    "bingham": [
+        ("c_a", "N*m*s/rad", 0.0, B, 0.8, "passive viscous damping"),
+        ("c_b", "N*m*s/(rad*A)", 0.0, B, 0.6, "current-dependent viscous damping"),
+        ("f_a", "N*m", 0.0, B, 0.3, "passive yield (Coulomb) torque"),
+        ("f_b", "N*m/A", 0.0, B, 1.0, "current-dependent yield torque"),
+    ],
+    "dahl": [
+        ("k_x", "N*m*s/rad", 0.0, B, 0.8, "viscous damping"),
+        ("k_wa", "N*m", 0.0, B, 0.5, "passive hysteretic torque"),
+        ("k_wb", "N*m/A", 0.0, B, 1.5, "current-dependent hysteretic torque"),
+        ("rho", "1/rad", 1e-9, B, 20.0, "hysteresis rate (loop sharpness)"),
+    ],
+    "lugre": [
+        ("sigma_a", "N*m/rad", 0.0, B, 10.0, "passive stiffness of z"),
+        ("sigma_0", "N*m/(rad*A)", 1e-9, B, 30.0, "current-dependent stiffness of z"),
+        ("sigma_1", "N*m*s/rad", 0.0, B, 0.5, "damping of z (acts through dz/dt)"),
+        ("sigma_2", "N*m*s/rad", 0.0, B, 0.5, "viscous damping"),
+        ("sigma_b", "N*m*s/(rad*A)", 0.0, B, 0.6, "current-dependent viscous damping"),
+        ("a_0", "A/(N*m)", 1e-12, B, 2.0 / 3.0, "rate constant (z_sat = 1/(sigma_0 a_0))"),
+    ],
+    **{
+        name: [
+            ("alpha_1", "N*m", 0.0, B, 0.5, "passive hysteretic torque"),
+            ("alpha_2", "N*m/A", 0.0, B, 1.5, "current-dependent hysteretic torque"),
+            ("c_1", "N*m*s/rad", 0.0, B, 0.5, "passive viscous damping"),
+            ("c_2", "N*m*s/(rad*A)", 0.0, B, 0.6, "current-dependent viscous damping"),
+            ("beta", "1/rad", -B, B, beta, "shape (theta_dot |z|^n term)"),
+            ("gamma", "1/rad", -B, B, gamma, f"shape (|theta_dot| {shape} term)"),
+            ("delta", "1/rad", 1e-12, B, 20.0, "initial slope of z against theta"),
+            ("n", "-", 1e-4, 10.0, n, "exponent"),
+        ]
+        for name, beta, gamma, shape, n in [
+            ("bouc-wen", 10.0, 10.0, "z |z|^n", 1.0),
+            ("bouc-wen-std", 5.0, 15.0, "z |z|^(n-1)", 2.0),
+        ]
+    },
+}
+
+
+@pytest.mark.parametrize("family", registry.family_names())
+def test_family_param_tables_are_unchanged(family):
+    """The text tables give every name, unit, bound, default and doc to the last bit."""
+    params = registry.get_family(family).params
+    rows = [(p.name, p.unit, p.lower, p.upper, p.default, p.doc) for p in params]
+    assert rows == FAMILY_PARAMS[family]
+    for p in params:
+        assert all(type(v) is float for v in (p.lower, p.upper, p.default)), p.name

@@ -1,7 +1,8 @@
 """Command-line interface: ``hystdisc <command> ...``.
 
-Each command lives in its own module of this package and provides ``add_parser(sub)``
-(register its ``argparse`` sub-parser) and ``run(args) -> int``. User errors
+Each command lives in its own module of this package and provides ``HELP`` (its line in
+``hystdisc --help``), ``DESCRIPTION`` (and optionally ``EPILOG``) of its own ``--help``,
+``add_arguments(p)`` (its options) and ``run(args) -> int``. User errors
 (:class:`~hystdisc.errors.HystdiscError`) are printed as one line on stderr with exit
 status 2; Ctrl-C exits with 130 and leaves no partial files (outputs are written
 atomically).
@@ -50,7 +51,10 @@ def build_parser() -> argparse.ArgumentParser:
             if exc.name != f"hystdisc.cli.{name}":
                 raise
             continue
-        p = mod.add_parser(sub)
+        p = sub.add_parser(
+            name, help=mod.HELP, description=mod.DESCRIPTION, epilog=getattr(mod, "EPILOG", None)
+        )
+        mod.add_arguments(p)
         p.set_defaults(run_command=mod.run)
     return parser
 

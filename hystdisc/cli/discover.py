@@ -26,17 +26,16 @@ from hystdisc.cli.common import (
 )
 from hystdisc.errors import HystdiscError
 
+HELP = "discover the hysteresis model of the data and fit every family"
+DESCRIPTION = (
+    "Discover the active terms by sparse regression with a latent hysteretic state, "
+    f"fit every family ({', '.join(registry.family_names())}) by output error with "
+    "95 % intervals, select one by BIC, and write results.json."
+)
 
-def add_parser(sub) -> argparse.ArgumentParser:
-    p = sub.add_parser(
-        "discover",
-        help="discover the hysteresis model of the data and fit every family",
-        description=(
-            "Discover the active terms by sparse regression with a latent hysteretic state, "
-            f"fit every family ({', '.join(registry.family_names())}) by output error with "
-            "95 % intervals, select one by BIC, and write results.json."
-        ),
-    )
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """The options of ``hystdisc discover``."""
     p.add_argument(
         "files", nargs="+", metavar="FILE", help="data files or folders (CSV, .mat, tables)"
     )
@@ -75,7 +74,6 @@ def add_parser(sub) -> argparse.ArgumentParser:
         "address, e.g. tcp://host:8786; needs pip install hystdisc[dask], hystdisc on the "
         "workers and the files readable there at the same paths)",
     )
-    return p
 
 
 def run(args: argparse.Namespace) -> int:

@@ -13,17 +13,16 @@ import warnings
 from hystdisc.cli.common import add_data_options, load_data
 from hystdisc.errors import HystdiscError, HystdiscWarning
 
+HELP = "simulate a fitted model (results.json) on new runs"
+DESCRIPTION = (
+    "Simulate the model of a results.json on the runs of DATA (release from each run's "
+    "first angle, driven from its motion, forced from its input) and write "
+    "run,t,current,<measured>,<measured>_pred."
+)
 
-def add_parser(sub) -> argparse.ArgumentParser:
-    p = sub.add_parser(
-        "predict",
-        help="simulate a fitted model (results.json) on new runs",
-        description=(
-            "Simulate the model of a results.json on the runs of DATA (release from each run's "
-            "first angle, driven from its motion, forced from its input) and write "
-            "run,t,current,<measured>,<measured>_pred."
-        ),
-    )
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """The options of ``hystdisc predict``."""
     p.add_argument("results", metavar="RESULTS.json")
     p.add_argument("data", nargs="+", metavar="DATA")
     p.add_argument("-o", "--output", required=True, metavar="OUT.csv")
@@ -31,7 +30,6 @@ def add_parser(sub) -> argparse.ArgumentParser:
     add_data_options(p)
     p.add_argument("--force", action="store_true", help="overwrite OUT.csv")
     p.add_argument("--quiet", action="store_true", help="print nothing but errors")
-    return p
 
 
 def run(args: argparse.Namespace) -> int:

@@ -24,21 +24,17 @@ from hystdisc.cli.common import (
 from hystdisc.errors import HystdiscError
 
 HELP = "discover the model and write an HTML model-comparison report (+ Markdown summary)"
+DESCRIPTION = (
+    "Run the discovery (as hystdisc discover) and write one self-contained HTML "
+    "report: data, measured against simulated output, hysteresis loops per current, "
+    "the family table, parameters with 95 % intervals, the seed's term "
+    "correspondence, the term-selection path and the closing loop. A Markdown "
+    "summary of the tables is written beside it (same name, .md)."
+)
 
 
-def add_parser(sub) -> argparse.ArgumentParser:
-    """Register ``hystdisc report``."""
-    p = sub.add_parser(
-        "report",
-        help=HELP,
-        description=(
-            "Run the discovery (as hystdisc discover) and write one self-contained HTML "
-            "report: data, measured against simulated output, hysteresis loops per current, "
-            "the family table, parameters with 95 % intervals, the seed's term "
-            "correspondence, the term-selection path and the closing loop. A Markdown "
-            "summary of the tables is written beside it (same name, .md)."
-        ),
-    )
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """The options of ``hystdisc report``."""
     p.add_argument(
         "files", nargs="+", metavar="FILE", help="data files or folders (CSV, .mat, tables)"
     )
@@ -60,7 +56,6 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--no-markdown", action="store_true", help="do not write the .md summary")
     p.add_argument("--force", action="store_true", help="overwrite existing report files")
     p.add_argument("--quiet", action="store_true", help="no progress messages on stderr")
-    return p
 
 
 def run(args: argparse.Namespace) -> int:

@@ -19,6 +19,15 @@ from hystdisc import registry
 from hystdisc.errors import HystdiscError
 
 HELP = "write a synthetic dataset of a known model (long CSV)"
+DESCRIPTION = (
+    "Simulate a model on the rig and write the measured signals as a long CSV "
+    "(run,t,theta,current + torque for driven, input for forced). Unset parameters "
+    "take the model's demo defaults; flags override the values of --scenario."
+)
+EPILOG = (
+    "examples: hystdisc simulate --model bouc-wen --set k_s=158 --currents 0,0.5,1 "
+    "-o bw.csv | hystdisc simulate --regenerate data_synth --force"
+)
 
 
 def add_model_options(p: argparse.ArgumentParser, set_help: str, effect_help: str) -> None:
@@ -30,21 +39,8 @@ def add_model_options(p: argparse.ArgumentParser, set_help: str, effect_help: st
     )
 
 
-def add_parser(sub: Any) -> argparse.ArgumentParser:
-    """Register ``hystdisc simulate``."""
-    p = sub.add_parser(
-        "simulate",
-        help=HELP,
-        description=(
-            "Simulate a model on the rig and write the measured signals as a long CSV "
-            "(run,t,theta,current + torque for driven, input for forced). Unset parameters "
-            "take the model's demo defaults; flags override the values of --scenario."
-        ),
-        epilog=(
-            "examples: hystdisc simulate --model bouc-wen --set k_s=158 --currents 0,0.5,1 "
-            "-o bw.csv | hystdisc simulate --regenerate data_synth --force"
-        ),
-    )
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """The options of ``hystdisc simulate``."""
     p.add_argument("--model", help=f"family: {', '.join(registry.family_names())}")
     add_model_options(
         p,
@@ -95,7 +91,6 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", metavar="FILE", help="output CSV (folder with --regenerate)")
     p.add_argument("--force", action="store_true", help="overwrite existing output")
     p.add_argument("--quiet", action="store_true", help="print nothing on success")
-    return p
 
 
 # ----------------------------------------------------------------------------- parsing

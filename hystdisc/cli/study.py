@@ -10,7 +10,6 @@ from __future__ import annotations
 import argparse
 import io
 from pathlib import Path
-from typing import Any
 
 from hystdisc import registry
 from hystdisc.cli.simulate import (
@@ -23,20 +22,16 @@ from hystdisc.cli.simulate import (
 from hystdisc.errors import HystdiscError
 
 HELP = "plot a model's hysteresis loops while one parameter varies"
+DESCRIPTION = (
+    "Impose theta = A sin(2 pi f t), let the loop settle, and overlay the damper "
+    "torque of the last cycle against velocity and against displacement for each "
+    "value of one parameter (or of the current: --vary current=0,0.5,1)."
+)
 FORMATS = (".png", ".pdf", ".svg")
 
 
-def add_parser(sub: Any) -> argparse.ArgumentParser:
-    """Register ``hystdisc study``."""
-    p = sub.add_parser(
-        "study",
-        help=HELP,
-        description=(
-            "Impose theta = A sin(2 pi f t), let the loop settle, and overlay the damper "
-            "torque of the last cycle against velocity and against displacement for each "
-            "value of one parameter (or of the current: --vary current=0,0.5,1)."
-        ),
-    )
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """The options of ``hystdisc study``."""
     p.add_argument("--model", required=True, help=f"family: {', '.join(registry.family_names())}")
     p.add_argument(
         "--vary", required=True, metavar="NAME=V1,V2,...", help="parameter and its values"
@@ -50,7 +45,6 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", required=True, metavar="FILE", help="figure (.png/.pdf/.svg)")
     p.add_argument("--force", action="store_true", help="overwrite an existing figure")
     p.add_argument("--quiet", action="store_true", help="print nothing on success")
-    return p
 
 
 def run(args: argparse.Namespace) -> int:

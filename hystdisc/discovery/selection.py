@@ -88,10 +88,8 @@ def fit_shape(
 
     Parameters
     ----------
-    eq : EqData
-        Equation-error data.
-    shape_name : str
-        Key of :data:`~hystdisc.discovery.shapes.SHAPES`.
+    eq, shape_name
+        As in :func:`varpro`.
     terms : sequence of str
         The torque library (the z terms are dropped for a shape without state).
     threshold : float, optional

@@ -9,7 +9,7 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from hystdisc.plotting.base import new_axes
+from hystdisc.plotting.base import fill_doc, new_axes
 
 
 def _family_rows(families: Any) -> dict[str, dict[str, Any]]:
@@ -25,6 +25,7 @@ def _family_rows(families: Any) -> dict[str, dict[str, Any]]:
     return rows
 
 
+@fill_doc
 def plot_family_comparison(
     families: Any,
     ax: Axes | Sequence[Axes] | None = None,
@@ -48,9 +49,7 @@ def plot_family_comparison(
     selected : str, optional
         Family to highlight.
 
-    Returns
-    -------
-    matplotlib.figure.Figure
+    %(returns)s
 
     Examples
     --------

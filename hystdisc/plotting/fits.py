@@ -9,7 +9,7 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from hystdisc.plotting.base import YLABEL, new_axes
+from hystdisc.plotting.base import YLABEL, fill_doc, new_axes
 
 
 def _prediction_for(predictions: Any, k: int, name: str, measured: str) -> np.ndarray | None:
@@ -26,6 +26,7 @@ def _prediction_for(predictions: Any, k: int, name: str, measured: str) -> np.nd
     return np.asarray(p, dtype=float)
 
 
+@fill_doc
 def plot_runs(
     dataset: Any,
     predictions: Sequence[Any] | Mapping[str, Any] | None = None,
@@ -48,9 +49,7 @@ def plot_runs(
     label : str
         Legend label of the predictions.
 
-    Returns
-    -------
-    matplotlib.figure.Figure
+    %(returns)s
 
     Examples
     --------
@@ -94,6 +93,7 @@ def plot_runs(
     return axes[0].figure
 
 
+@fill_doc
 def plot_fit(
     t: np.ndarray,
     measured: np.ndarray,
@@ -135,9 +135,7 @@ def plot_fit(
     **style
         Passed to ``Axes.plot`` for the simulated line (and the residual).
 
-    Returns
-    -------
-    matplotlib.figure.Figure
+    %(returns)s
 
     Examples
     --------

@@ -9,9 +9,10 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from hystdisc.plotting.base import XLABEL, YLABEL, new_axes
+from hystdisc.plotting.base import XLABEL, YLABEL, fill_doc, new_axes
 
 
+@fill_doc
 def plot_loops(
     t: np.ndarray,
     theta: np.ndarray,
@@ -31,8 +32,7 @@ def plot_loops(
         Samples of the loop (``theta_dot`` may be None: it is then ``np.gradient(theta, t)``).
     current : float, optional
         Coil current, used for the default label ``"<i> A"``.
-    ax : matplotlib Axes, optional
-        Where to draw; a new figure when omitted.
+    %(ax)s
     kind : {"velocity", "displacement"}
         Horizontal axis: ``theta_dot`` or ``theta``.
     label : str, optional
@@ -40,9 +40,7 @@ def plot_loops(
     **style
         Passed to ``Axes.plot`` (color, linestyle, ...).
 
-    Returns
-    -------
-    matplotlib.figure.Figure
+    %(returns)s
         The figure holding ``ax``.
     """
     if kind not in XLABEL:
@@ -83,6 +81,7 @@ def _loop_items(loops: Any) -> list[dict[str, Any]]:
     return [dict(item) for item in loops]
 
 
+@fill_doc
 def loops_figure(
     loops: Mapping[str, Any] | Sequence[Mapping[str, Any]] | Any,
     axes: Sequence[Axes] | None = None,
@@ -103,9 +102,7 @@ def loops_figure(
     legend : bool
         Draw a legend when the loops have labels.
 
-    Returns
-    -------
-    matplotlib.figure.Figure
+    %(returns)s
 
     Examples
     --------

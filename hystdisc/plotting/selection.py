@@ -9,7 +9,7 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from hystdisc.plotting.base import new_axes
+from hystdisc.plotting.base import fill_doc, new_axes
 
 
 def _path_x(thresholds: np.ndarray) -> tuple[np.ndarray, float | None]:
@@ -24,6 +24,7 @@ def _path_x(thresholds: np.ndarray) -> tuple[np.ndarray, float | None]:
     return x, zero_at
 
 
+@fill_doc
 def plot_selection_path(
     path: Sequence[Mapping[str, Any]],
     ax: Axes | Sequence[Axes] | None = None,
@@ -48,9 +49,7 @@ def plot_selection_path(
     title : str, optional
         Title of the coefficient panel.
 
-    Returns
-    -------
-    matplotlib.figure.Figure
+    %(returns)s
 
     Examples
     --------
@@ -113,6 +112,7 @@ def plot_selection_path(
     return ax_c.figure
 
 
+@fill_doc
 def plot_inclusion(
     inclusion: Mapping[str, float],
     ax: Axes | None = None,
@@ -124,14 +124,11 @@ def plot_inclusion(
     ----------
     inclusion : dict
         Term -> probability in [0, 1] (``Discovery(ensemble=True)``: ``stage1_[shape].inclusion``).
-    ax : Axes, optional
-        Where to draw; a new figure when omitted.
+    %(ax)s
     title : str, optional
         Axes title.
 
-    Returns
-    -------
-    matplotlib.figure.Figure
+    %(returns)s
 
     Examples
     --------

@@ -9,9 +9,10 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from hystdisc.plotting.base import new_axes
+from hystdisc.plotting.base import fill_doc, new_axes
 
 
+@fill_doc
 def plot_residual_spectrum(
     residuals: np.ndarray | Sequence[np.ndarray],
     fs: float,
@@ -29,8 +30,7 @@ def plot_residual_spectrum(
         The residual of one run or of each run (:func:`hystdisc.closing.diagnostics.residual_spectrum`).
     fs : float
         Sampling rate in Hz.
-    ax : Axes, optional
-        Where to draw; a new figure when omitted.
+    %(ax)s
     noise_std : float, optional
         Estimated measurement noise: its white level ``2 noise_std**2 / fs`` is drawn.
     dominant_hz : float, optional
@@ -40,9 +40,7 @@ def plot_residual_spectrum(
     **style
         Passed to ``Axes.loglog``.
 
-    Returns
-    -------
-    matplotlib.figure.Figure
+    %(returns)s
 
     Examples
     --------

@@ -10,10 +10,12 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
+from hystdisc.plotting.base import fill_doc
 from hystdisc.plotting.loops import loops_figure
 from hystdisc.simulation.studies import CURRENT_NAMES
 
 
+@fill_doc
 def plot_study(
     study: Sequence[Mapping[str, Any]],
     ax: Sequence[Axes] | None = None,
@@ -33,9 +35,7 @@ def plot_study(
     cmap : str
         Colour map running over the values.
 
-    Returns
-    -------
-    matplotlib.figure.Figure
+    %(returns)s
 
     Examples
     --------

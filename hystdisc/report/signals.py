@@ -192,10 +192,8 @@ def model_loops(
 
     Parameters
     ----------
-    disc : Discovery
-        A fitted discovery.
-    runs : sequence of int, optional
-        Run indices (default: all).
+    disc, runs
+        As in :func:`fit_signals`.
     fits : sequence of str, optional
         Which fits (default: every family, ``"discovered"`` when it is no family and
         ``"final"`` when effects were accepted).

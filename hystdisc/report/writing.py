@@ -123,10 +123,8 @@ def write_report(
 
     Parameters
     ----------
-    disc : Discovery
-        A fitted discovery.
-    dataset : Dataset
-        The dataset it was fitted on.
+    disc, dataset
+        As in :func:`render_report`.
     path : path-like
         The HTML file (``.html``); the Markdown summary goes to the same name with ``.md``.
     force : bool

@@ -6,6 +6,8 @@ The low-level entry points of the output-error fit (:func:`mech_batch`,
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from scipy.interpolate import CubicSpline
 
@@ -59,6 +61,29 @@ def input_slopes(t: np.ndarray, u: np.ndarray, offsets: np.ndarray) -> np.ndarra
     return du
 
 
+def _call_kernel(kernel, model, inputs, outputs, nruns, steps, work) -> np.ndarray:
+    """Call a batch kernel: ``model`` (``coef, b, n``) and ``inputs``, the step controls
+    ``steps`` (``eps, ratio, min_sub, max_sub``), ``outputs``, a fresh status and ``work``
+    (zeros when None); returns the per-run status."""
+    coef, b, n = model
+    eps, ratio, min_sub, max_sub = steps
+    status = np.zeros(nruns, dtype=np.int64)
+    kernel(
+        np.ascontiguousarray(coef, dtype=float),
+        np.ascontiguousarray(b, dtype=float),
+        np.asarray(n, dtype=float),
+        *inputs,
+        eps,
+        ratio,
+        min_sub,
+        _per_run(max_sub, nruns),
+        *outputs,
+        status,
+        np.zeros(nruns, dtype=np.int64) if work is None else work,
+    )
+    return status
+
+
 def mech_batch(
     coef: np.ndarray,
     b: np.ndarray,
@@ -88,36 +113,20 @@ def mech_batch(
     """
     if hold not in HOLDS:
         raise HystdiscError(f"unknown input hold '{hold}'; fix: use one of {', '.join(HOLDS)}")
-    th = np.empty_like(t)
-    w = np.empty_like(t)
-    z = np.empty_like(t)
-    status = np.zeros(len(offsets) - 1, dtype=np.int64)
     if hold != "cubic":
         du = np.zeros(1)
     elif du is None:
         du = input_slopes(t, u, offsets)
-    _mech_batch(
-        np.ascontiguousarray(coef, dtype=float),
-        np.ascontiguousarray(b, dtype=float),
-        np.asarray(n, dtype=float),
-        np.asarray(J, dtype=float),
-        t,
-        u,
-        du,
-        offsets,
-        np.asarray(theta0, dtype=float),
-        np.asarray(theta_dot0, dtype=float),
-        np.asarray(z0, dtype=float),
-        HOLDS[hold],
-        eps,
-        ratio,
-        min_sub,
-        _per_run(max_sub, len(offsets) - 1),
-        th,
-        w,
-        z,
-        status,
-        np.zeros(len(offsets) - 1, dtype=np.int64) if work is None else work,
+    J, theta0, theta_dot0, z0 = (np.asarray(a, dtype=float) for a in (J, theta0, theta_dot0, z0))
+    th, w, z = np.empty_like(t), np.empty_like(t), np.empty_like(t)
+    status = _call_kernel(
+        _mech_batch,
+        (coef, b, n),
+        (J, t, u, du, offsets, theta0, theta_dot0, z0, HOLDS[hold]),
+        (th, w, z),
+        len(offsets) - 1,
+        (eps, ratio, min_sub, max_sub),
+        work,
     )
     return th, w, z, status
 
@@ -139,26 +148,15 @@ def driven_batch(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Low-level batched driven simulation; returns flat ``torque, z`` and the status
     (``max_sub``: one sub-step cap, or one per run; ``work`` as in :func:`mech_batch`)."""
-    tq = np.empty_like(t)
-    z = np.empty_like(t)
-    status = np.zeros(len(offsets) - 1, dtype=np.int64)
-    _driven_batch(
-        np.ascontiguousarray(coef, dtype=float),
-        np.ascontiguousarray(b, dtype=float),
-        np.asarray(n, dtype=float),
-        t,
-        theta,
-        theta_dot,
-        offsets,
-        np.asarray(z0, dtype=float),
-        eps,
-        ratio,
-        min_sub,
-        _per_run(max_sub, len(offsets) - 1),
-        tq,
-        z,
-        status,
-        np.zeros(len(offsets) - 1, dtype=np.int64) if work is None else work,
+    tq, z = np.empty_like(t), np.empty_like(t)
+    status = _call_kernel(
+        _driven_batch,
+        (coef, b, n),
+        (t, theta, theta_dot, offsets, np.asarray(z0, dtype=float)),
+        (tq, z),
+        len(offsets) - 1,
+        (eps, ratio, min_sub, max_sub),
+        work,
     )
     return tq, z, status
 
@@ -172,11 +170,7 @@ def driven_shared(
     theta_dot: np.ndarray,
     offsets: np.ndarray,
     run: np.ndarray,
-    eps: float = SIGN_EPS,
-    ratio: float = STEP_RATIO,
-    min_sub: int = MIN_SUBSTEPS,
-    max_sub: int | np.ndarray = MAX_SUBSTEPS,
-    work: np.ndarray | None = None,
+    **options: Any,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`driven_batch` from ``z = 0`` for entries that may share their hysteresis.
 
@@ -184,8 +178,10 @@ def driven_shared(
     the same rate coefficients and exponent have the same ``z``: it is integrated once and
     only the torque is evaluated for the others (in a driven experiment the torque-side
     parameters do not act on ``z``, so most columns of a finite-difference Jacobian need no
-    integration). Returns exactly what :func:`driven_batch` returns; ``work`` (one per
-    entry) receives the integration work, 0 for the entries that reuse another's z.
+    integration). The keyword ``options`` (``eps``, ``ratio``, ``min_sub``, ``max_sub``,
+    ``work``) are as for :func:`driven_batch`, entries taking the place of runs. Returns
+    exactly what :func:`driven_batch` returns; ``work`` receives the integration work, 0
+    for the entries that reuse another's z.
 
     Examples
     --------
@@ -199,7 +195,8 @@ def driven_shared(
     True
     """
     ne = len(offsets) - 1
-    max_sub = _per_run(max_sub, ne)
+    max_sub = _per_run(options.pop("max_sub", MAX_SUBSTEPS), ne)
+    work = options.pop("work", None)
     first: dict[tuple, int] = {}
     owner = np.empty(ne, dtype=np.int64)
     for e in range(ne):
@@ -220,11 +217,9 @@ def driven_shared(
         theta_dot[idx],
         sub_off,
         np.zeros(lead.size),
-        eps,
-        ratio,
-        min_sub,
-        max_sub[lead],
-        work_l,
+        max_sub=max_sub[lead],
+        work=work_l,
+        **options,
     )
     pos = {int(e): j for j, e in enumerate(lead)}
     if work is not None:
@@ -240,6 +235,7 @@ def driven_shared(
         if owner[e] == e:
             tq[offsets[e] : offsets[e + 1]] = tq_l[sub_off[j] : sub_off[j + 1]]
     rest = np.array([e for e in range(ne) if owner[e] != e], dtype=np.int64)
+    eps = options.get("eps", SIGN_EPS)
     _torque_series(
         np.ascontiguousarray(coef, dtype=float), rest, offsets, theta, theta_dot, z, eps, tq
     )

@@ -499,6 +499,17 @@ def _scenario_error(source: str, problem: str, fix: str) -> HystdiscError:
     return HystdiscError(f"{source}: {problem}; fix: {fix}")
 
 
+def _effect_params(name: str, ep: Any, source: str) -> dict[str, float]:
+    """One ``[effects.<name>]`` table of a scenario, its values as numbers."""
+    if not isinstance(ep, Mapping):
+        raise _scenario_error(
+            source,
+            f"effects.{name} must be a table",
+            f"write [effects.{name}] and its parameters below it",
+        )
+    return {str(k): _number(v, f"effect {name} parameter {k}") for k, v in ep.items()}
+
+
 def load_scenario(path: str | os.PathLike[str]) -> dict[str, Any]:
     """Read a scenario TOML file (the settings of ``hystdisc simulate``).
 
@@ -579,17 +590,9 @@ def normalize_scenario(raw: Mapping[str, Any], source: str = "scenario") -> dict
             raise _scenario_error(
                 source, "effects must be a table", "write [effects.coulomb] then f_c = 0.3"
             )
-        sc["effects"] = {}
-        for name, ep in effects.items():
-            if not isinstance(ep, Mapping):
-                raise _scenario_error(
-                    source,
-                    f"effects.{name} must be a table",
-                    f"write [effects.{name}] and its parameters below it",
-                )
-            sc["effects"][str(name)] = {
-                str(k): _number(v, f"effect {name} parameter {k}") for k, v in ep.items()
-            }
+        sc["effects"] = {
+            str(name): _effect_params(name, ep, source) for name, ep in effects.items()
+        }
         if "currents" in raw:
             sc["currents"] = _check_currents(raw["currents"])
         for key in ("duration", "fs", "noise", "theta_noise"):

@@ -19,6 +19,9 @@ class Family:
     hysteresis_terms: tuple[str, ...] = ()
     #: Parameters that multiply the current (fixed at 0 when every run has one current).
     current_params: tuple[str, ...] = ()
+    #: Torque terms whose coefficient is one parameter (term -> parameter name), in the
+    #: order of the term form.
+    linear_torque: Mapping[str, str] = {}
 
     def param_names(self) -> list[str]:
         """Names of the damper parameters (rig parameters excluded)."""
@@ -27,6 +30,10 @@ class Family:
     def defaults(self) -> dict[str, float]:
         """Demo defaults of the damper parameters."""
         return {p.name: p.default for p in self.params}
+
+    def linear_coefs(self, p: Mapping[str, float]) -> dict[str, float]:
+        """Coefficients of the :attr:`linear_torque` terms for the parameters ``p``."""
+        return {term: p[name] for term, name in self.linear_torque.items()}
 
     def to_terms(self, p: Mapping[str, float]) -> TermModel:  # pragma: no cover - abstract
         raise NotImplementedError

@@ -7,22 +7,21 @@ from collections.abc import Mapping
 import numpy as np
 
 from hystdisc.models.families.base import Family
-from hystdisc.models.params import BIG, Param
+from hystdisc.models.params import param_table
 from hystdisc.models.terms import TermModel
 
-
-def _params(beta: float, gamma: float, gamma_shape: str, n: float) -> tuple[Param, ...]:
-    """The parameters of both forms: their demo defaults and the gamma term's shape differ."""
-    return (
-        Param("alpha_1", "N*m", 0.0, BIG, 0.5, "passive hysteretic torque"),
-        Param("alpha_2", "N*m/A", 0.0, BIG, 1.5, "current-dependent hysteretic torque"),
-        Param("c_1", "N*m*s/rad", 0.0, BIG, 0.5, "passive viscous damping"),
-        Param("c_2", "N*m*s/(rad*A)", 0.0, BIG, 0.6, "current-dependent viscous damping"),
-        Param("beta", "1/rad", -BIG, BIG, beta, "shape (theta_dot |z|^n term)"),
-        Param("gamma", "1/rad", -BIG, BIG, gamma, f"shape (|theta_dot| {gamma_shape} term)"),
-        Param("delta", "1/rad", 1e-12, BIG, 20.0, "initial slope of z against theta"),
-        Param("n", "-", 1e-4, 10.0, n, "exponent"),
-    )
+#: The parameters of both forms: their demo defaults and the gamma term's shape differ.
+_PARAMS = """
+    # name   unit           lower  upper  default  doc
+    alpha_1  N*m            0      BIG    0.5      passive hysteretic torque
+    alpha_2  N*m/A          0      BIG    1.5      current-dependent hysteretic torque
+    c_1      N*m*s/rad      0      BIG    0.5      passive viscous damping
+    c_2      N*m*s/(rad*A)  0      BIG    0.6      current-dependent viscous damping
+    beta     1/rad          -BIG   BIG    {beta}   shape (theta_dot |z|^n term)
+    gamma    1/rad          -BIG   BIG    {gamma}  shape (|theta_dot| {gamma_shape} term)
+    delta    1/rad          1e-12  BIG    20       initial slope of z against theta
+    n        -              1e-4   10     {n}      exponent
+"""
 
 
 class BoucWen(Family):
@@ -30,10 +29,11 @@ class BoucWen(Family):
 
     name = "bouc-wen"
     title = "Bouc-Wen (seed form)"
-    params = _params(beta=10.0, gamma=10.0, gamma_shape="z |z|^n", n=1.0)
+    params = param_table(_PARAMS.format(beta=10, gamma=10, gamma_shape="z |z|^n", n=1))
     normalization = "z_sat = 1 (delta = beta + gamma)"
     current_params = ("alpha_2", "c_2")
     torque_terms = ("theta_dot", "i*theta_dot", "z", "i*z")
+    linear_torque = {"z": "alpha_1", "i*z": "alpha_2", "theta_dot": "c_1", "i*theta_dot": "c_2"}
     hysteresis_terms = ("theta_dot", "theta_dot*|z|^n", "|theta_dot|*z*|z|^n")
     _gamma_term = "|theta_dot|*z*|z|^n"
     #: Degree of z in the gamma term beyond |z|^n (seed form: z|z|^n, one more).
@@ -41,12 +41,7 @@ class BoucWen(Family):
 
     def to_terms(self, p):
         return TermModel(
-            {
-                "z": p["alpha_1"],
-                "i*z": p["alpha_2"],
-                "theta_dot": p["c_1"],
-                "i*theta_dot": p["c_2"],
-            },
+            self.linear_coefs(p),
             {"theta_dot": p["delta"], "theta_dot*|z|^n": -p["beta"], self._gamma_term: -p["gamma"]},
             n=p["n"],
         )
@@ -105,7 +100,7 @@ class BoucWenStd(BoucWen):
 
     name = "bouc-wen-std"
     title = "Bouc-Wen (standard form)"
-    params = _params(beta=5.0, gamma=15.0, gamma_shape="z |z|^(n-1)", n=2.0)
+    params = param_table(_PARAMS.format(beta=5, gamma=15, gamma_shape="z |z|^(n-1)", n=2))
     hysteresis_terms = ("theta_dot", "theta_dot*|z|^n", "|theta_dot|*z*|z|^(n-1)")
     _gamma_term = "|theta_dot|*z*|z|^(n-1)"
     gamma_extra_degree = 0

@@ -3,27 +3,29 @@
 from __future__ import annotations
 
 from hystdisc.models.families.base import Family
-from hystdisc.models.params import BIG, Param
+from hystdisc.models.params import param_table
 from hystdisc.models.terms import TermModel
 
 
 class Dahl(Family):
     name = "dahl"
     title = "Dahl"
-    params = (
-        Param("k_x", "N*m*s/rad", 0.0, BIG, 0.8, "viscous damping"),
-        Param("k_wa", "N*m", 0.0, BIG, 0.5, "passive hysteretic torque"),
-        Param("k_wb", "N*m/A", 0.0, BIG, 1.5, "current-dependent hysteretic torque"),
-        Param("rho", "1/rad", 1e-9, BIG, 20.0, "hysteresis rate (loop sharpness)"),
-    )
+    params = param_table("""
+        # name  unit       lower  upper  default  doc
+        k_x     N*m*s/rad  0      BIG    0.8      viscous damping
+        k_wa    N*m        0      BIG    0.5      passive hysteretic torque
+        k_wb    N*m/A      0      BIG    1.5      current-dependent hysteretic torque
+        rho     1/rad      1e-9   BIG    20       hysteresis rate (loop sharpness)
+    """)
     normalization = "w saturates at 1 (by construction)"
     current_params = ("k_wb",)
-    torque_terms = ("theta_dot", "z", "i*z")
+    linear_torque = {"theta_dot": "k_x", "z": "k_wa", "i*z": "k_wb"}
+    torque_terms = tuple(linear_torque)
     hysteresis_terms = ("theta_dot", "|theta_dot|*z")
 
     def to_terms(self, p):
         return TermModel(
-            {"theta_dot": p["k_x"], "z": p["k_wa"], "i*z": p["k_wb"]},
+            self.linear_coefs(p),
             {"theta_dot": p["rho"], "|theta_dot|*z": -p["rho"]},
         )
 

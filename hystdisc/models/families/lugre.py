@@ -3,21 +3,22 @@
 from __future__ import annotations
 
 from hystdisc.models.families.base import Family
-from hystdisc.models.params import BIG, Param
+from hystdisc.models.params import param_table
 from hystdisc.models.terms import TermModel
 
 
 class LuGre(Family):
     name = "lugre"
     title = "LuGre"
-    params = (
-        Param("sigma_a", "N*m/rad", 0.0, BIG, 10.0, "passive stiffness of z"),
-        Param("sigma_0", "N*m/(rad*A)", 1e-9, BIG, 30.0, "current-dependent stiffness of z"),
-        Param("sigma_1", "N*m*s/rad", 0.0, BIG, 0.5, "damping of z (acts through dz/dt)"),
-        Param("sigma_2", "N*m*s/rad", 0.0, BIG, 0.5, "viscous damping"),
-        Param("sigma_b", "N*m*s/(rad*A)", 0.0, BIG, 0.6, "current-dependent viscous damping"),
-        Param("a_0", "A/(N*m)", 1e-12, BIG, 2.0 / 3.0, "rate constant (z_sat = 1/(sigma_0 a_0))"),
-    )
+    params = param_table("""
+        # name   unit           lower  upper  default  doc
+        sigma_a  N*m/rad        0      BIG    10       passive stiffness of z
+        sigma_0  N*m/(rad*A)    1e-9   BIG    30       current-dependent stiffness of z
+        sigma_1  N*m*s/rad      0      BIG    0.5      damping of z (acts through dz/dt)
+        sigma_2  N*m*s/rad      0      BIG    0.5      viscous damping
+        sigma_b  N*m*s/(rad*A)  0      BIG    0.6      current-dependent viscous damping
+        a_0      A/(N*m)        1e-12  BIG    2/3      rate constant (z_sat = 1/(sigma_0 a_0))
+    """)
     normalization = (
         "seed scale (dz/dt = theta_dot - sigma_0 a_0 |theta_dot| z; z_sat = 1/(sigma_0 a_0))"
     )
