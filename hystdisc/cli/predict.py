@@ -50,7 +50,7 @@ def run(args: argparse.Namespace) -> int:
     if args.experiment is None:
         args.experiment = res.experiment
     data = load_data(args, args.data)
-    hold = res.summary().get("input_hold", "cubic")
+    hold = res.input_hold or "cubic"
     if hold not in HOLDS:
         raise HystdiscError(
             f"{args.results}: unknown input_hold {hold!r}; fix: use one of {', '.join(HOLDS)}"
