@@ -158,8 +158,11 @@ if HAVE_DATA:
 # The residual spectrum of the selected model (after any effects the closing loop
 # accepted; in the fast test run the loop is skipped). Peaks at the drive frequency and
 # its odd harmonics mean the loop shape is still wrong: the real damper's force is not
-# linear in the current (`current_saturation`) and its post-yield branch is not linear in
-# velocity (`quadratic_damping`), which the closing loop tries in turn.
+# linear in the current (`current_saturation`) and its post-yield branch grows less than
+# linearly with velocity. The closing loop tries `quadratic_damping`, finds that the data
+# want it with a negative (non-physical) sign, and reports it as pointing at that physics
+# instead of adding it: a negative velocity-squared force would make the damper generate
+# energy beyond the training velocities.
 
 # %%
 if HAVE_DATA:
