@@ -1,21 +1,24 @@
 """Stage 2: output-error fits of a structure over all runs jointly.
 
 :class:`FitData` holds the runs as the fit sees them; a :class:`Parametrization`
-(:class:`FamilyParametrization`, :class:`TermParametrization`) maps free parameters to a
-term model; :class:`OutputErrorFitter` fits it with :func:`levenberg_marquardt` and returns
+(:class:`FamilyParametrization`, :class:`TermParametrization`, and
+:class:`SystemParametrization` for any state-space model) maps free parameters to a model
+and simulates it (:mod:`hystdisc.fitting.simulate`); :class:`OutputErrorFitter` fits it with :func:`levenberg_marquardt` and returns
 an :class:`OEFit` (parameters, 95 % intervals, identifiability, BIC, held-out error);
 :func:`predict_dataset` simulates a fitted model on new runs.
 """
 
 from hystdisc.fitting.data import FitData
 from hystdisc.fitting.lm import levenberg_marquardt
-from hystdisc.fitting.output_error import OEFit, OutputErrorFitter, simulate_entries
+from hystdisc.fitting.output_error import OEFit, OutputErrorFitter
 from hystdisc.fitting.parametrization import (
     FamilyParametrization,
     Parametrization,
+    SystemParametrization,
     TermParametrization,
 )
 from hystdisc.fitting.predict import predict_dataset
+from hystdisc.fitting.simulate import simulate_entries, simulate_systems
 
 __all__ = [
     "FamilyParametrization",
@@ -23,8 +26,10 @@ __all__ = [
     "OEFit",
     "OutputErrorFitter",
     "Parametrization",
+    "SystemParametrization",
     "TermParametrization",
     "levenberg_marquardt",
     "predict_dataset",
     "simulate_entries",
+    "simulate_systems",
 ]

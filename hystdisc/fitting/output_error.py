@@ -28,16 +28,9 @@ from hystdisc.fitting.data import FitData
 from hystdisc.fitting.lm import levenberg_marquardt
 from hystdisc.fitting.parametrization import Parametrization
 from hystdisc.models import TermModel
-from hystdisc.models.compiled import N_BASE, base_coefficients
-from hystdisc.simulation import driven_shared, mech_batch
 from hystdisc.stats import bic as _bic
 
 Z95 = 1.959963984540054
-#: Sub-step ratio used while fitting (errors ~1e-6 of the signal, far below any noise).
-FIT_RATIO = 0.4
-#: Sub-step cap while fitting: a candidate with a near-discontinuous state (a Dahl rate
-#: fitted to Bingham data) is not worth resolving exactly inside the optimizer.
-FIT_MAX_SUB = 8
 #: Levenberg-Marquardt iterations on the full data after the bulk fit, at least.
 POLISH_MIN_ITER = 2
 #: Samples simulated per compiled call of a Jacobian (bounds its scratch memory).
@@ -50,97 +43,6 @@ BULK_TOL = 1e-5
 #: (a fold that leaves out a whole test condition moves the fit beyond what one linear
 #: step predicts).
 HELDOUT_STEPS = 2
-
-
-def simulate_entries(
-    data: FitData,
-    models: list[TermModel],
-    runs: list[int],
-    nuis: list[np.ndarray],
-    status_out: list | None = None,
-    work_out: list | None = None,
-) -> list[np.ndarray]:
-    """Simulate (model, run) pairs in one compiled call; return the predicted outputs.
-
-    A diverged entry is returned with its non-finite samples replaced by 1e6 (a large,
-    finite residual the optimizer backs away from); ``status_out`` receives the flags and
-    ``work_out`` the integration work of each entry (see :func:`~hystdisc.simulation.mech_batch`).
-    """
-    ne = len(runs)
-    exp = data.exp
-    steps = data.run_steps()
-    # the sub-step cap is per measured sample interval: a decimated run gets q times more
-    max_sub = np.array([FIT_MAX_SUB * steps[r] for r in runs], dtype=np.int64)
-    coef = np.empty((ne, N_BASE))
-    b = np.empty((ne, 5))
-    n = np.empty(ne)
-    J = np.empty(ne)
-    for e, (tm, r) in enumerate(zip(models, runs, strict=True)):
-        coef[e] = base_coefficients(tm, data.currents[r])
-        b[e] = tm.hysteresis_vector()
-        n[e] = tm.n
-        J[e] = tm.J if exp.inertia_identifiable else 1.0
-    offsets = np.zeros(ne + 1, dtype=np.int64)
-    offsets[1:] = np.cumsum([len(data.t[r]) for r in runs])
-    work = np.zeros(ne, dtype=np.int64)
-    t = np.concatenate([data.t[r] for r in runs])
-    with np.errstate(all="ignore"):
-        if exp.motion_imposed:
-            th = np.concatenate([data.theta[r] for r in runs])
-            w = np.concatenate([data.theta_dot[r] for r in runs])
-            out, _, status = driven_shared(
-                coef,
-                b,
-                n,
-                t,
-                th,
-                w,
-                offsets,
-                np.asarray(runs),
-                ratio=FIT_RATIO,
-                min_sub=1,
-                max_sub=max_sub,
-                work=work,
-            )
-        else:
-            u = np.concatenate([data.u[r] for r in runs])
-            du = None
-            if exp.has_input and data.hold == "cubic":
-                slopes = data.input_slopes()
-                du = np.concatenate([slopes[r] for r in runs])
-            th0 = np.array([v[0] for v in nuis])
-            w0 = np.array([v[1] if len(v) > 1 else 0.0 for v in nuis])
-            z0 = np.array([v[2] if len(v) > 2 else 0.0 for v in nuis])
-            out, _, _, status = mech_batch(
-                coef,
-                b,
-                n,
-                J,
-                t,
-                u,
-                offsets,
-                th0,
-                w0,
-                z0,
-                hold=data.hold,
-                ratio=FIT_RATIO,
-                min_sub=1,
-                max_sub=max_sub,
-                du=du,
-                work=work,
-            )
-    res = [out[offsets[e] : offsets[e + 1]] for e in range(ne)]
-    bad = []
-    for e in range(ne):
-        diverged = bool(status[e]) or not np.all(np.isfinite(res[e]))
-        if diverged:
-            res[e] = np.where(np.isfinite(res[e]), res[e], 1e6)
-        bad.append(diverged)
-    if status_out is not None:
-        status_out.extend(bad)
-    if work_out is not None:
-        work_out.extend(int(w) for w in work)
-    return res
 
 
 @dataclass
@@ -232,7 +134,7 @@ class OutputErrorFitter:
         self.max_nfev = max_nfev
         self.rel_step = rel_step
         self.npar = len(par.names)
-        self.state = bool(par.terms(par.x0).hysteresis)
+        self.state = par.has_state()
         self.nnu = data.n_nuisance(self.state)
         self.masks = data.mask
         #: Where each run's residual rows start (and the last one ends) in the residual.
@@ -275,9 +177,9 @@ class OutputErrorFitter:
 
     def residuals(self, v, work_out: list | None = None):
         x, nu = self._split(v)
-        tm = self.par.terms(x)
+        tm = self.par.model(x)
         runs = list(range(self.data.n_runs))
-        preds = simulate_entries(
+        preds = self.par.simulate(
             self.data, [tm] * len(runs), runs, [nu[r] for r in runs], work_out=work_out
         )
         return self._resid_from(preds, runs)
@@ -293,14 +195,14 @@ class OutputErrorFitter:
         R = self.data.n_runs
         steps = self.rel_step * np.maximum(np.abs(v), 1e-3 * (np.abs(v).max() + 1e-12))
         steps = np.maximum(steps, 1e-10)
-        tm0 = self.par.terms(x)
+        tm0 = self.par.model(x)
         tms = []
         for j in range(self.npar):
             xj = x.copy()
             xj[j] += steps[j]
             if xj[j] > self.par.upper[j]:
                 xj[j] -= 2 * steps[j]
-            tms.append(self.par.terms(xj))
+            tms.append(self.par.model(xj))
         Jm = np.zeros((self.row_offsets[-1], len(v)))
         group: list[int] = []
         size = 0
@@ -332,7 +234,7 @@ class OutputErrorFitter:
                 runs.append(r)
                 nuis.append(nq)
                 cols.append(self.npar + r * self.nnu + q)
-        preds = simulate_entries(self.data, models, runs, nuis)
+        preds = self.par.simulate(self.data, models, runs, nuis)
         base = {}
         for e, (r, j) in enumerate(zip(runs, cols, strict=True)):
             if j < 0:
@@ -485,8 +387,8 @@ class OutputErrorFitter:
                     f"is wider than its value {p[kk]:.4g})"
                 )
         runs = list(range(self.data.n_runs))
-        tm = self.par.terms(x)
-        preds = simulate_entries(self.data, [tm] * len(runs), runs, [nu[r] for r in runs])
+        tm = self.par.model(x)
+        preds = self.par.simulate(self.data, [tm] * len(runs), runs, [nu[r] for r in runs])
         resid = [preds[r] - self.data.y[r] for r in runs]
         fit = OEFit(
             par=self.par,
@@ -589,9 +491,9 @@ class OutputErrorFitter:
             vr = v.copy()
             vr[cols] += delta
             xr = self._fold_refit(fold, vr)
-            tm = self.par.terms(xr)
+            tm = self.par.model(xr)
             st: list = []
-            out = simulate_entries(self.data, [tm] * len(fold), fold, [nu[r] for r in fold], st)
+            out = self.par.simulate(self.data, [tm] * len(fold), fold, [nu[r] for r in fold], st)
             for r, pr, bad in zip(fold, out, st, strict=True):
                 if bad:
                     self.heldout_note = (

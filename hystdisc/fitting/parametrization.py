@@ -20,6 +20,7 @@ import numpy as np
 
 from hystdisc.discovery import SHAPES
 from hystdisc.errors import HystdiscError
+from hystdisc.fitting.simulate import simulate_entries, simulate_systems
 from hystdisc.models import (
     EFFECTS,
     HYSTERESIS_TERM_NAMES,
@@ -29,11 +30,20 @@ from hystdisc.models import (
     TermModel,
     get_family,
 )
+from hystdisc.models.system import StateSpaceModel
 from hystdisc.registry import get_experiment
 
 
 class Parametrization:
-    """Free parameters <-> term model. Subclasses define names, start and bounds."""
+    """Free parameters <-> a simulated model. Subclasses define names, start and bounds.
+
+    The fit asks a parametrization for the model of a free vector (:meth:`model`),
+    simulates a batch of (model, run) pairs with :meth:`simulate`, and reads whether the
+    model has a hysteretic state (:meth:`has_state`: its initial value is then a nuisance
+    parameter of runs that may start mid-motion). The term-form parametrizations simulate
+    on the fixed-step term kernels; :class:`SystemParametrization` on the integrator of
+    any state-space model.
+    """
 
     names: list[str]
     x0: np.ndarray
@@ -43,6 +53,18 @@ class Parametrization:
 
     def terms(self, x: np.ndarray) -> TermModel:  # pragma: no cover - abstract
         raise NotImplementedError
+
+    def model(self, x: np.ndarray):
+        """What :meth:`simulate` takes for the free vector ``x`` (the term model here)."""
+        return self.terms(x)
+
+    def has_state(self) -> bool:
+        """The model carries a hysteretic state ``z``."""
+        return bool(self.terms(self.x0).hysteresis)
+
+    def simulate(self, data, models, runs, nuis, status_out=None, work_out=None):
+        """Predicted outputs of (model, run) pairs (see :func:`simulate_entries`)."""
+        return simulate_entries(data, models, runs, nuis, status_out, work_out)
 
     def params(self, x: np.ndarray) -> dict[str, float]:
         """Every reported parameter (free and derived) for the free vector ``x``."""
@@ -179,3 +201,64 @@ class TermParametrization(Parametrization):
         if self.inertia:
             p["J"] = float(x[-1])
         return p
+
+
+class SystemParametrization(Parametrization):
+    """The named parameters of any :class:`~hystdisc.models.system.StateSpaceModel`.
+
+    Free parameters are the model's own (with their admissible bounds) minus ``fixed``;
+    the model is simulated by the error-controlled integrator
+    (:func:`~hystdisc.fitting.simulate.simulate_systems`), so a model with internal states
+    (a compliant wheel, an internal degree of freedom) is fitted like a family.
+
+    Parameters
+    ----------
+    model : StateSpaceModel
+        The model.
+    start : dict
+        Start values (unset parameters start at their defaults).
+    fixed : dict, optional
+        Parameters held at a value.
+
+    Examples
+    --------
+    >>> from hystdisc.models.wheel import BeamOnCompliantWheel
+    >>> par = SystemParametrization(BeamOnCompliantWheel("dahl"), {"k_w": 800.0}, {"m_w": 0.3})
+    >>> par.names[-2:], par.has_state()
+    (['k_w', 'c_w'], True)
+    """
+
+    def __init__(
+        self,
+        model: StateSpaceModel,
+        start: dict[str, float],
+        fixed: dict[str, float] | None = None,
+    ) -> None:
+        self.system = model
+        self.fixed = dict(fixed or {})
+        specs = [p for p in model.params if p.name not in self.fixed]
+        self.names = [p.name for p in specs]
+        self.lower = np.array([p.lower for p in specs], dtype=float)
+        self.upper = np.array([p.upper for p in specs], dtype=float)
+        self.x0 = _clip_start([start.get(p.name, p.default) for p in specs], self.lower, self.upper)
+        self.normalization = ""
+
+    def params(self, x: np.ndarray) -> dict[str, float]:
+        p = dict(zip(self.names, map(float, x), strict=True))
+        p.update(self.fixed)
+        return p
+
+    def model(self, x: np.ndarray):
+        return (self.system, self.params(x))
+
+    def terms(self, x: np.ndarray) -> TermModel:
+        raise HystdiscError(
+            f"{self.system.name} is a state-space model, not a term model; fix: use "
+            "model(x) and simulate()"
+        )
+
+    def has_state(self) -> bool:
+        return "z" in self.system.states
+
+    def simulate(self, data, models, runs, nuis, status_out=None, work_out=None):
+        return simulate_systems(data, models, runs, nuis, status_out, work_out)

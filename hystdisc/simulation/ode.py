@@ -38,7 +38,7 @@ from hystdisc.models.system import StateSpaceModel
 RTOL = 1e-8
 ATOL = 1e-11
 #: Steps (accepted or rejected) allowed per sample interval before a run is given up.
-MAX_STEPS_PER_SAMPLE = 10_000
+MAX_STEPS_PER_SAMPLE = 1_000
 
 # Dormand–Prince 5(4): nodes, stages, 5th-order weights and the error weights (5th - 4th)
 _C = (0.2, 0.3, 0.8, 8.0 / 9.0, 1.0)
