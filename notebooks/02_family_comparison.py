@@ -58,9 +58,11 @@ data
 # ## Fit every family
 #
 # `Discovery` fits each family in `families=` by output error and selects the one with the
-# lowest BIC (within 2 of it, the one with fewer parameters). `heldout=True` adds the
-# leave-one-run-out RMS: each run predicted by a fit that did not see it. The closing loop
-# is the subject of notebook 03, so it is off here.
+# lowest BIC among the physical families that predict held-out data about as well as the
+# best (within 2 of the lowest BIC, the one with fewer parameters). `heldout=True` adds the
+# held-out RMS: each test condition (here every run starts from the same angle, so each
+# run) predicted by a fit that did not see it. The closing loop is the subject of notebook
+# 03, so it is off here.
 
 # %%
 d = Discovery(families=FAMILIES, heldout=not FAST, close_loop=False).fit(data)

@@ -225,7 +225,7 @@ def refit_with(
     max_nfev : int
         Simulation budget of each fit.
     heldout : bool
-        Also compute the leave-one-run-out error.
+        Also compute the held-out error (leave one test condition out, or one run).
     start : dict, optional
         A full start (family, rig and effect parameters), e.g. from :func:`stage1_start`.
     good_rms : float
