@@ -106,7 +106,11 @@ def add_discovery_options(p: argparse.ArgumentParser) -> None:
     add_data_options(p)
     p.add_argument("--seed", type=int, default=0, help="seed of the resampling (default 0)")
     p.add_argument("--ensemble", action="store_true", help="inclusion probabilities by bagging")
-    p.add_argument("--no-heldout", action="store_true", help="skip the family table's held-out errors (the closing loop still judges effects on held-out data)")
+    p.add_argument(
+        "--no-heldout",
+        action="store_true",
+        help="skip the family table's held-out errors (the closing loop still judges effects on held-out data)",
+    )
     p.add_argument(
         "--single-current",
         action="store_true",
