@@ -166,9 +166,10 @@ class Discovery(BaseEstimator):
         After the fit, diagnose the residual against the effect catalogue, add effects
         that improve BIC and test the final residual for whiteness (:mod:`hystdisc.closing`).
     single_current : bool
-        Compare the families on runs at one current (a rig without a coil, such as the
-        hysteretic benchmark); the current-dependent parameters are fixed at 0. Without it,
-        one current is an error unless ``model`` declares the family.
+        Kept for compatibility: runs that all share one current (a rig without a coil,
+        such as the hysteretic benchmark) are always accepted; the families are compared
+        at that current, with a warning that the current dependence is not identifiable
+        (the current-dependent parameters are fixed at 0).
     input_hold : {'cubic', 'linear', 'zoh'}
         Forced experiments: how the input is interpolated between its samples (a cubic
         spline for a sampled smooth force; ``zoh`` for a DAC output held between samples).
@@ -450,15 +451,23 @@ class Discovery(BaseEstimator):
             fams = [get_family(self.model).name]
         else:
             fams = [get_family(f).name for f in (self.families or family_names())]
-        # selecting a family needs several currents, unless the user declared the family or
-        # asked for a comparison at one current (a rig without a coil, e.g. a benchmark)
-        one = self.model is not None or self.single_current
-        validate(dataset, need_currents=1 if one else 2)
-        self.single_current_ = len(distinct_currents(dataset.currents)) < 2
+        # one current (a rig without a coil, the hysteretic benchmark): the families are
+        # compared at it, and the current dependence is reported as not identifiable
+        validate(dataset, need_currents=1)
+        levels = distinct_currents(dataset.currents)
+        self.single_current_ = len(levels) < 2
         if self.single_current_:
+            check = (
+                " (if the runs were recorded at different currents, check the current column "
+                "and its unit: --column current=NAME, --units current=mA)"
+                if levels[0] == 0.0 and len(dataset.runs) > 1
+                else ""
+            )
+            what = "the family is fitted" if self.model is not None else "the families are compared"
             warnings.warn(
-                f"{dataset.source}: all runs share one current; the current-dependent "
-                "parameters are fixed at 0 and the i* terms left out of the library",
+                f"{dataset.source}: all runs share one current ({levels[0]:g} A); {what} at "
+                "it, and the current dependence is not identifiable: the current-dependent "
+                f"parameters are fixed at 0 and the i* terms left out of the library{check}",
                 HystdiscWarning,
                 stacklevel=2,
             )

@@ -290,31 +290,34 @@ def test_irregular_sampling_is_an_error_with_the_fix(base, tmp_path, capsys):
 # ----------------------------------------------------------------------------- currents
 
 
-def test_single_run_needs_a_declared_model(base, tmp_path, capsys):
+def test_one_current_just_works(base, tmp_path, capsys):
+    """One run (or runs that share one current): the families are compared at it, with
+    one warning that the current dependence is not identifiable."""
     one = base.subset([1])
-    _, err, _ = fit(one)
-    assert err and "single current" in err and "--model" in err
-    d, err, texts = fit(one, model="dahl")
-    assert err is None, err
-    assert any("one current" in t for t in texts)
-    assert d.family_fits_["dahl"].params["k_wb"] == 0.0  # fixed, said so in the warning
-    # a rig without a coil: the families are compared at its one current when asked
-    d, err, _ = fit(one, single_current=True)
+    d, err, texts = fit(one)
     assert err is None, err
     assert set(d.family_fits_) == {"dahl", "bingham"} and d.family_ in d.family_fits_
-    assert d.family_fits_["dahl"].params["k_wb"] == 0.0
+    assert d.family_fits_["dahl"].params["k_wb"] == 0.0  # fixed, said so in the warning
+    (warning,) = [t for t in texts if "share one current" in t]
+    assert "the families are compared at it" in warning and "not identifiable" in warning
+    d, err, texts = fit(one, model="dahl")
+    assert err is None, err
+    assert any("the family is fitted at it" in t for t in texts)
+    # --single-current is still accepted and changes nothing
+    d2, err, _ = fit(one, single_current=True)
+    assert err is None and d2.family_ == fit(one)[0].family_
     data = write_csv(one, tmp_path / "one.csv")
-    cli_error(["discover", data, *CLI_FAST], capsys, "single current", "--model")
     out = tmp_path / "results.json"
-    code, _, err = cli(["discover", data, "--model", "dahl", "--json", out, *CLI_FAST], capsys)
-    assert code == 0 and "hystdisc: warning:" in err
+    code, _, err = cli(["discover", data, "--json", out, *CLI_FAST], capsys)
+    assert code == 0 and "hystdisc: warning:" in err and "share one current" in err
     check_results_json(out.read_text())
 
 
-def test_constant_current_needs_a_declared_model(base, tmp_path, capsys):
+def test_constant_current(base, tmp_path, capsys):
     ds = replace_runs(base, lambda r: {"current": 0.5}, "constant.csv")
-    _, err, _ = fit(ds)
-    assert err and "single current (0.5 A)" in err and "--model" in err
+    d, err, texts = fit(ds)
+    assert err is None, err
+    assert any("share one current (0.5 A)" in t and "check the current" not in t for t in texts)
     code, err, out = cli_discover(ds, tmp_path, capsys, "--model", "dahl")
     assert code == 0, err
     assert "share one current" in err
@@ -322,11 +325,13 @@ def test_constant_current_needs_a_declared_model(base, tmp_path, capsys):
 
 
 def test_all_zero_current_column(base, tmp_path, capsys):
+    """All zero: a rig without a coil, or a wrong current column: compared at 0 A, and the
+    warning says how to check the column."""
     ds = replace_runs(base, lambda r: {"current": 0.0}, "zero.csv")
-    _, err, _ = fit(ds)
-    assert err and "all zero" in err and "--column current" in err
-    data = write_csv(ds, tmp_path / "zero.csv")
-    cli_error(["discover", data, *CLI_FAST], capsys, "zero.csv", "all zero", "--model")
+    d, err, texts = fit(ds)
+    assert err is None, err
+    (warning,) = [t for t in texts if "share one current (0 A)" in t]
+    assert "--column current=NAME" in warning and "--units current=mA" in warning
     code, err, out = cli_discover(ds, tmp_path, capsys, "--model", "bingham")
     assert code == 0, err
     check_results_json(out.read_text())

@@ -114,8 +114,8 @@ def add_discovery_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--single-current",
         action="store_true",
-        help="compare the families on runs at one current (a rig without a coil); the "
-        "current terms are fixed at 0",
+        help="accepted for compatibility: runs that all share one current (a rig without a "
+        "coil) are compared at it anyway, the current terms fixed at 0",
     )
     p.add_argument(
         "--input-hold",
