@@ -228,13 +228,15 @@ def test_bad_input_one_line_errors(tmp_path, capsys):
     bad.write_text("run,time,angle,current\n0,0,0.1,0\n")
     err = _one_line_error(capsys, ["discover", str(bad), "--force"])
     assert "cols.csv" in err and "fix:" in err
-    # one current where selecting a family needs several
+    # one current is not an error: the families are compared at it, with one warning
     one = generate(Model("dahl"), currents=(0.5,), duration=2, seed=1)
     from hystdisc.data import write_csv
 
     p1 = write_csv(one, tmp_path / "one.csv")
-    err = _one_line_error(capsys, ["discover", str(p1), "--force"])
-    assert "current" in err and "--model" in err
+    argv = ["discover", str(p1), "--out", str(tmp_path / "one"), "--families", "dahl,bingham"]
+    assert main([*argv, "--quiet", "--no-effects"]) == 0
+    err = capsys.readouterr().err
+    assert err.count("share one current (0.5 A)") == 1 and "Traceback" not in err
     # a run that never moves
     still = tmp_path / "still.csv"
     rows = ["run,t,theta,current"] + [f"0,{k / 1000},0.1,0" for k in range(300)]

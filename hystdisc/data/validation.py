@@ -233,9 +233,8 @@ def _check_currents(dataset: Dataset, need_currents: int) -> None:
     raise input_error(
         dataset.source,
         problem,
-        "add runs at other currents, declare a family with --model so that only its "
-        "current-independent part is fitted, or compare the families at this one current "
-        "with --single-current",
+        "add runs at other currents, or declare a family with --model so that only its "
+        "current-independent part is fitted",
     )
 
 
