@@ -16,7 +16,7 @@ import pytest
 from hystdisc import Discovery
 from hystdisc.cli import main
 from hystdisc.data import Dataset, Run, write_csv
-from hystdisc.models.params import BIG, Param
+from hystdisc.models.params import param_table
 from hystdisc.models.system import StateSpaceModel
 from hystdisc.simulation.ode import simulate_system
 from hystdisc.simulation.synth import generate
@@ -45,15 +45,15 @@ class DahlWithEndStop(StateSpaceModel):
     name = "Dahl rig with an end stop"
     states = ("theta", "theta_dot", "z")
     output = "theta"
-    params = (
-        Param("k_s", "-", 0, BIG, 158.0),
-        Param("k_x", "-", 0, BIG, 0.8),
-        Param("k_wa", "-", 0, BIG, 0.5),
-        Param("k_wb", "-", 0, BIG, 1.5),
-        Param("rho", "-", 0, BIG, 20.0),
-        Param("k_stop", "-", 0, BIG, 400.0),
-        Param("theta_s", "-", 0, BIG, 0.2),
-    )
+    params = param_table("""
+        k_s      N*m/rad    0  BIG  158  rig spring
+        k_x      N*m*s/rad  0  BIG  0.8  viscous damping
+        k_wa     N*m        0  BIG  0.5  passive hysteretic torque
+        k_wb     N*m/A      0  BIG  1.5  current-dependent hysteretic torque
+        rho      1/rad      0  BIG  20   hysteresis rate
+        k_stop   N*m/rad    0  BIG  400  stiffness of the end stop
+        theta_s  rad        0  BIG  0.2  angle where the stop begins
+    """)
     rate = staticmethod(_stop_rate)
     observe = staticmethod(_angle)
 
@@ -134,14 +134,14 @@ class DahlWithSaturatingDrag(StateSpaceModel):
     states = ("z",)
     inputs = ("theta", "theta_dot")
     output = "torque"
-    params = (
-        Param("k_x", "-", 0, BIG, 0.8),
-        Param("k_wa", "-", 0, BIG, 0.5),
-        Param("k_wb", "-", 0, BIG, 1.5),
-        Param("rho", "-", 0, BIG, 20.0),
-        Param("c_d", "-", 0, BIG, 0.5),
-        Param("v_sat", "-", 0, BIG, 1.5),
-    )
+    params = param_table("""
+        k_x    N*m*s/rad      0  BIG  0.8  viscous damping
+        k_wa   N*m            0  BIG  0.5  passive hysteretic torque
+        k_wb   N*m/A          0  BIG  1.5  current-dependent hysteretic torque
+        rho    1/rad          0  BIG  20   hysteresis rate
+        c_d    N*m*s^2/rad^2  0  BIG  0.5  drag coefficient
+        v_sat  rad/s          0  BIG  1.5  velocity where the drag stops growing
+    """)
     rate = staticmethod(_drag_rate)
     observe = staticmethod(_drag_force)
 
