@@ -67,7 +67,13 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help(sys.stderr)
         return 2
 
+    said: set[str] = set()  # the data are checked by the reader and again by the fit
+
     def _warn(message, category, filename, lineno, file=None, line=None):
+        text = str(message)
+        if text in said:
+            return
+        said.add(text)
         if issubclass(category, HystdiscWarning):
             print(f"hystdisc: warning: {message}", file=sys.stderr)
         elif not getattr(args, "quiet", False):

@@ -99,7 +99,53 @@ def _validate(dataset: Dataset, need_currents: int) -> Dataset:
         _check_moves(run, src, exp)
         _check_motion(run, src, exp)
     _check_currents(dataset, need_currents)
+    _check_units(dataset, exp)
     return dataset
+
+
+#: Below this sampling rate (Hz) a damper record is implausible: time in milliseconds?
+MIN_PLAUSIBLE_FS = 10.0
+#: Above this coil current (A) a damper record is implausible: current in milliamperes?
+MAX_PLAUSIBLE_CURRENT = 50.0
+
+
+def _check_units(dataset: Dataset, exp) -> None:
+    """One warning per column whose magnitudes are implausible for its declared unit (the
+    run goes on: the user may know better; the fix names the ``--units`` flag)."""
+    src = dataset.source
+    runs = [r for r in dataset.runs if r.n > 1]
+    if not runs:
+        return
+    fs = float(np.median([r.fs for r in runs]))
+    if fs < MIN_PLAUSIBLE_FS:
+        longest = max(r.duration for r in runs)
+        _warn_unit(
+            f"{src}: the sampling rate is {fs:.3g} samples per second and the longest run "
+            f"lasts {longest:.4g} s, implausible for a damper test: is the time column in "
+            "milliseconds? (fix: --units t=ms)"
+        )
+    peak = max(float(np.max(np.abs(r.theta))) for r in runs)
+    if peak > 2 * np.pi and exp.motion_imposed:
+        _warn_unit(
+            f"{src}: theta reaches {peak:.4g}, more than a turn in rad and more than 6 m as "
+            "a displacement: is it in degrees or millimetres? (fix: --units theta=deg or "
+            "--units theta=mm)"
+        )
+    elif peak > 2 * np.pi:
+        _warn_unit(
+            f"{src}: theta reaches {peak:.4g} rad, more than a turn of the beam: is it in "
+            "degrees? (fix: --units theta=deg)"
+        )
+    top = max(abs(r.current) for r in dataset.runs)
+    if top > MAX_PLAUSIBLE_CURRENT:
+        _warn_unit(
+            f"{src}: the coil current reaches {top:.4g} A, implausible for an MR damper: is "
+            "it in milliamperes? (fix: --units current=mA)"
+        )
+
+
+def _warn_unit(message: str) -> None:
+    warnings.warn(message, HystdiscWarning, stacklevel=_STACKLEVEL)
 
 
 def _where(run: Run, k: int) -> str:

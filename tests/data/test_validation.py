@@ -126,3 +126,64 @@ def test_release_that_does_not_decay_is_warned_but_forced_is_not():
     assert len(texts) == 1 and "the motion does not decay" in texts[0]
     forced = Run("0", t, theta, 0.0, input=np.cos(t))
     assert _warnings_of(Dataset([forced], "forced")) == []
+
+
+# ----------------------------------------------------------------------------- units
+
+
+@pytest.fixture(scope="module")
+def dahl_csv_text():
+    """The bundled Dahl set, as a user would hold it."""
+    from pathlib import Path
+
+    return (Path(__file__).resolve().parents[2] / "data_synth" / "dahl.csv").read_text()
+
+
+def _with_column(text: str, column: str, factor: float) -> str:
+    """The CSV text with one column multiplied (a file recorded in other units)."""
+    lines = text.splitlines()
+    header = lines[0].split(",")
+    k = header.index(column)
+    out = [lines[0]]
+    for line in lines[1:]:
+        cells = line.split(",")
+        cells[k] = f"{float(cells[k]) * factor:.9g}"
+        out.append(",".join(cells))
+    return "\n".join(out) + "\n"
+
+
+@pytest.mark.parametrize(
+    "column, factor, words, fix",
+    [
+        ("t", 1000.0, "is the time column in milliseconds?", "--units t=ms"),
+        ("theta", 180.0 / math.pi, "is it in degrees?", "--units theta=deg"),
+        ("current", 1000.0, "is it in milliamperes?", "--units current=mA"),
+    ],
+)
+def test_implausible_units_are_warned_with_the_fix(
+    dahl_csv_text, tmp_path, capsys, column, factor, words, fix
+):
+    from hystdisc.cli import main
+
+    path = tmp_path / f"dahl_{column}.csv"
+    path.write_text(_with_column(dahl_csv_text, column, factor))
+    ds = read_csv(path)
+    caught = [
+        w for w in _warnings_of(ds) if "implausible" in str(w.message) or words in str(w.message)
+    ]
+    (w,) = caught
+    assert words in str(w.message) and fix in str(w.message) and str(path) in str(w.message)
+    # through the command line: one line on stderr, and the --units fix makes it go away
+    argv = ["discover", str(path), "--families", "dahl", "--no-heldout", "--no-effects", "--quiet"]
+    assert main([*argv, "--out", str(tmp_path / "a")]) == 0
+    err = [ln for ln in capsys.readouterr().err.splitlines() if words in ln]
+    assert len(err) == 1 and err[0].startswith("hystdisc: warning:")
+    unit = fix.split()[-1].split("=")
+    assert main([*argv, "--out", str(tmp_path / "b"), "--units", "=".join(unit)]) == 0
+    assert words not in capsys.readouterr().err
+
+
+def test_plausible_units_are_not_warned(dahl_csv_text, tmp_path):
+    path = tmp_path / "dahl.csv"
+    path.write_text(dahl_csv_text)
+    assert not [w for w in _warnings_of(read_csv(path)) if "--units" in str(w.message)]
