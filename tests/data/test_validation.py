@@ -167,10 +167,10 @@ def test_implausible_units_are_warned_with_the_fix(
 
     path = tmp_path / f"dahl_{column}.csv"
     path.write_text(_with_column(dahl_csv_text, column, factor))
-    ds = read_csv(path)
-    caught = [
-        w for w in _warnings_of(ds) if "implausible" in str(w.message) or words in str(w.message)
-    ]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", HystdiscWarning)  # the reader validates too
+        ds = read_csv(path)
+    caught = [w for w in _warnings_of(ds) if words in str(w.message)]
     (w,) = caught
     assert words in str(w.message) and fix in str(w.message) and str(path) in str(w.message)
     # through the command line: one line on stderr, and the --units fix makes it go away
