@@ -42,6 +42,7 @@ import warnings
 import matplotlib.pyplot as plt
 
 from hystdisc import Discovery, HystdiscWarning, Model, generate
+from hystdisc.discovery import DEFAULT_TORQUE_TERMS
 from hystdisc.plotting import plot_inclusion, plot_runs, plot_selection_path
 
 # The test suite sets HYSTDISC_NOTEBOOK_FAST=1 to run this notebook on less data.
@@ -135,19 +136,7 @@ print(f"{'default':<18} -> {d.discovered_name_}")  # the fit above
 print(f"{'':<18}    torque terms {d.terms_['torque']}")
 libraries = {
     "seed terms": ("theta", "theta_dot", "i*theta_dot", "z", "i*z"),
-    "default + effects": (
-        "theta",
-        "theta_dot",
-        "i*theta_dot",
-        "z",
-        "i*z",
-        "|theta_dot|*z",
-        "sign(theta_dot)",
-        "i*sign(theta_dot)",
-        "theta_dot*|theta_dot|",
-        "theta^3",
-        "i^2*z",
-    ),
+    "default + effects": (*DEFAULT_TORQUE_TERMS, "theta_dot*|theta_dot|", "theta^3", "i^2*z"),
 }
 if FAST:
     libraries.pop("seed terms")
