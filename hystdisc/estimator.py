@@ -568,7 +568,11 @@ class Discovery(BaseEstimator):
             )
         self.final_fit_ = selected if self.loop_ is None else self.loop_.fit
         self.effects_ = [] if self.loop_ is None else list(self.loop_.effects)
-        self.final_admissibility_ = check_admissible(self.final_fit_.term_model, self.envelope_)
+        self.final_admissibility_ = (
+            self.admissibility_[self.family_]
+            if self.final_fit_ is selected  # the loop accepted nothing: already checked
+            else check_admissible(self.final_fit_.term_model, self.envelope_)
+        )
         if not self.final_admissibility_.ok:
             warnings.warn(
                 f"{dataset.source}: THE RESULT IS NOT PHYSICAL: "

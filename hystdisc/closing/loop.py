@@ -329,7 +329,9 @@ def _acceptable(step: dict) -> bool:
     )
 
 
-def _rejection(step: dict, improves: bool, step_ok: bool, significant: bool) -> str:
+def _rejection(
+    step: dict, improves: bool, step_ok: bool, significant: bool, violation: str | None
+) -> str:
     """Why a refitted effect was not accepted: every test it failed, in the order applied."""
     if not step_ok:
         return "its refit did not converge to finite values"
@@ -351,7 +353,7 @@ def _rejection(step: dict, improves: bool, step_ok: bool, significant: bool) -> 
         why = ": it improves the fit only on the data it was fitted to" if lowered else ""
         failed.append(f"does not lower the held-out error ({hb:.4g} -> {after}){why}")
     if not step["admissible"]:
-        failed.append(f"not physical: {step['_violation']}")
+        failed.append(f"not physical: {violation}")
     return "; ".join(failed)
 
 
@@ -460,9 +462,7 @@ def augment(
                 step["note"] = f"{w[1]['name']} lowered BIC more"
                 continue
             rejected.add(step["name"])
-            step["_violation"] = violation
-            step["note"] = _rejection(step, improves, step_ok, significant)
-            step.pop("_violation")
+            step["note"] = _rejection(step, improves, step_ok, significant, violation)
             if wants:
                 hint = EFFECTS[step["name"]].hint or "physics the catalogue lacks"
                 step["points_at"] = hint

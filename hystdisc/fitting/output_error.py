@@ -428,7 +428,7 @@ class OutputErrorFitter:
         """Mask of the entries of ``v`` (parameters, then initial states) at a bound."""
         out = np.zeros(len(v), dtype=bool)
         x, lo, hi = v[: self.npar], self.par.lower, self.par.upper
-        tol = 1e-6 * np.maximum(np.maximum(np.abs(x), 1e-6), 0.0)
+        tol = 1e-6 * np.maximum(np.abs(x), 1e-6)
         with np.errstate(invalid="ignore"):
             out[: self.npar] = (x - lo <= tol) | (hi - x <= tol)
         return out
