@@ -19,6 +19,10 @@ class Family:
     hysteresis_terms: tuple[str, ...] = ()
     #: Parameters that multiply the current (fixed at 0 when every run has one current).
     current_params: tuple[str, ...] = ()
+    #: Current laws: a name -> (passive parameter, its per-ampere slope), for the
+    #: parameters whose value at current ``i`` is ``passive + slope * i`` (the seed's
+    #: linear law; the staged fit of issue 15 chooses among other laws for them).
+    current_laws: Mapping[str, tuple[str, str]] = {}
     #: Torque terms whose coefficient is one parameter (term -> parameter name), in the
     #: order of the term form.
     linear_torque: Mapping[str, str] = {}

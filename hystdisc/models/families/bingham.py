@@ -19,6 +19,7 @@ class Bingham(Family):
     """)
     normalization = "none (no hysteretic state)"
     current_params = ("c_b", "f_b")
+    current_laws = {"c": ("c_a", "c_b"), "f": ("f_a", "f_b")}
     linear_torque = {
         "theta_dot": "c_a",
         "i*theta_dot": "c_b",

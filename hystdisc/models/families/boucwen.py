@@ -32,6 +32,7 @@ class BoucWen(Family):
     params = param_table(_PARAMS.format(beta=10, gamma=10, gamma_shape="z |z|^n", n=1))
     normalization = "z_sat = 1 (delta = beta + gamma)"
     current_params = ("alpha_2", "c_2")
+    current_laws = {"alpha": ("alpha_1", "alpha_2"), "c": ("c_1", "c_2")}
     torque_terms = ("theta_dot", "i*theta_dot", "z", "i*z")
     linear_torque = {"z": "alpha_1", "i*z": "alpha_2", "theta_dot": "c_1", "i*theta_dot": "c_2"}
     hysteresis_terms = ("theta_dot", "theta_dot*|z|^n", "|theta_dot|*z*|z|^n")

@@ -25,6 +25,7 @@ class LuGre(Family):
     torque_terms = ("theta_dot", "i*theta_dot", "z", "i*z", "|theta_dot|*z")
     hysteresis_terms = ("theta_dot", "|theta_dot|*z")
     current_params = ("sigma_b",)
+    current_laws = {"sigma_v": ("sigma_2", "sigma_b")}
 
     def to_terms(self, p):
         r = p["sigma_0"] * p["a_0"]
