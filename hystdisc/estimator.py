@@ -62,6 +62,7 @@ from hystdisc.discovery import (
 from hystdisc.errors import HystdiscError, HystdiscWarning
 from hystdisc.fitting import (
     FamilyParametrization,
+    FamilySystemParametrization,
     FitData,
     OEFit,
     OutputErrorFitter,
@@ -413,6 +414,44 @@ class Discovery(BaseEstimator):
         p, _ = family_start(eq, name, s0=s0, one_level=self.single_current_)
         return p
 
+    def _system_fit(self, name: str, base: OEFit, fd: FitData, say) -> OEFit:
+        """A system family by output error from each of its starts (mapped from the
+        standard Bouc-Wen fit ``base``); the best is kept, and how many starts reached it
+        is noted (the spread when they disagree)."""
+        fam = FAMILIES[name]
+        fixed = {p: 0.0 for p in fam.current_params} if self.single_current_ else {}
+        bp = dict(base.params)
+        starts = fam.starts(bp)
+        for _, st in starts:
+            for k in ("k_s", "J"):
+                if k in bp:
+                    st.setdefault(k, bp[k])
+
+        def one(k):
+            label, start = starts[k]
+            say(f"stage 2: output-error fit of {name}, start {k + 1}/{len(starts)} ({label})")
+            par = FamilySystemParametrization(name, fd.experiment, start, fixed=fixed)
+            return OutputErrorFitter(fd, par, max_nfev=self.max_nfev).fit(heldout=False)
+
+        fits = self._map(one, list(range(len(starts))))
+        order = np.argsort([f.rss for f in fits])
+        best = fits[order[0]]
+        reached = [starts[k][0] for k in range(len(fits)) if fits[k].rss <= 1.01 * best.rss]
+        best.notes.append(
+            f"{len(reached)} of {len(fits)} starts reached the optimum (RMS within 1 %: "
+            f"{', '.join(reached)})"
+            + (
+                ""
+                if len(reached) == len(fits)
+                else "; the others ended at RMS "
+                + ", ".join(f"{fits[k].rms:.4g} ({starts[k][0]})" for k in order[len(reached) :])
+            )
+        )
+        best.extra["starts"] = {starts[k][0]: fits[k].rms for k in range(len(fits))}
+        if self.heldout:
+            best = OutputErrorFitter(fd, best.par, max_nfev=self.max_nfev).heldout_at(best)
+        return best
+
     def _stage1_shape(self, fit: OEFit) -> np.ndarray | None:
         """The stage-1 shape constants of the fitted family's hysteresis shape."""
         found = self.stage1_.get(FAMILY_SHAPE.get(fit.par.family.name))
@@ -512,6 +551,8 @@ class Discovery(BaseEstimator):
 
         # stage 2: each family by output error (and the discovered structure when it is not
         # one of them), each fit on its own
+        sys_fams = [n for n in fams if FAMILIES[n].is_system]
+        fams = [n for n in fams if not FAMILIES[n].is_system]
         same = [
             n
             for n in fams
@@ -535,13 +576,30 @@ class Discovery(BaseEstimator):
             fitter = OutputErrorFitter(fd, par, max_nfev=self.max_nfev)
             return fitter.fit(heldout=self.heldout)
 
+        def family_fit_std(eq, fd):
+            say("stage 2: output-error fit of bouc-wen-std (the start of the system families)")
+            start, norm = _normalization("bouc-wen-std", self._family_start(eq, "bouc-wen-std"))
+            fixed = (
+                {p: 0.0 for p in FAMILIES["bouc-wen-std"].current_params}
+                if self.single_current_
+                else {}
+            )
+            par = FamilyParametrization(
+                "bouc-wen-std", eq.experiment, start, fixed=fixed, normalization=norm
+            )
+            return OutputErrorFitter(fd, par, max_nfev=self.max_nfev).fit(heldout=False)
+
         fits = self._map(family_fit, list(range(len(fams) + (0 if same else 1))))
         self.family_fits_: dict[str, OEFit] = dict(zip(fams, fits, strict=False))
         self.discovered_fit_ = self.family_fits_[same[0]] if same else fits[-1]
+        if sys_fams:
+            base = self.family_fits_.get("bouc-wen-std") or family_fit_std(eq, fd)
+            for name in sys_fams:
+                self.family_fits_[name] = self._system_fit(name, base, fd, say)
 
         self.envelope_ = Envelope.from_runs(fd.names, fd.t, fd.theta, fd.theta_dot, fd.currents)
         self.admissibility_ = {
-            n: check_admissible(f.term_model, self.envelope_) for n, f in self.family_fits_.items()
+            n: check_admissible(f.model, self.envelope_) for n, f in self.family_fits_.items()
         }
         self.family_, self.selection_note_ = self._select()
         bics = {n: f.bic for n, f in self.family_fits_.items()}
@@ -553,7 +611,14 @@ class Discovery(BaseEstimator):
         self.declared_ = self.model is not None
         selected = self.family_fits_[self.family_]
         self.loop_: LoopResult | None = None
-        if self.close_loop:
+        if self.close_loop and selected.is_system:
+            warnings.warn(
+                f"{dataset.source}: the closing loop does not yet run on the state-space "
+                f"family {self.family_}; its fit is reported without effects",
+                HystdiscWarning,
+                stacklevel=2,
+            )
+        elif self.close_loop:
             say("closing the loop: residual -> catalogued effects")
             self.loop_ = close_loop(
                 selected,
@@ -571,7 +636,7 @@ class Discovery(BaseEstimator):
         self.final_admissibility_ = (
             self.admissibility_[self.family_]
             if self.final_fit_ is selected  # the loop accepted nothing: already checked
-            else check_admissible(self.final_fit_.term_model, self.envelope_)
+            else check_admissible(self.final_fit_.model, self.envelope_)
         )
         if not self.final_admissibility_.ok:
             warnings.warn(
@@ -629,7 +694,7 @@ class Discovery(BaseEstimator):
             fit = self.final_fit_  # the selected family with its accepted effects
         else:
             fit = self.family_fits_[family or self.family_]
-        return predict_dataset(fit.term_model, dataset, self.experiment_, self.input_hold)
+        return predict_dataset(fit.model, dataset, self.experiment_, self.input_hold)
 
     def score(self, dataset: Dataset) -> float:
         """Coefficient of determination R^2 of the simulated output on ``dataset``."""

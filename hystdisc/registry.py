@@ -12,7 +12,9 @@ Examples
 --------
 >>> from hystdisc import registry
 >>> registry.family_names()
-('bingham', 'dahl', 'lugre', 'bouc-wen', 'bouc-wen-std')
+('bingham', 'dahl', 'lugre', 'bouc-wen', 'bouc-wen-std', 'spencer')
+>>> registry.term_family_names()[-1]
+'bouc-wen-std'
 >>> registry.get_family("Bouc_Wen").name
 'bouc-wen'
 >>> registry.get_experiment("release").output
@@ -37,7 +39,12 @@ FAMILIES: dict[str, str] = {
     "lugre": "hystdisc.models.families.lugre:LUGRE",
     "bouc-wen": "hystdisc.models.families.boucwen:BOUC_WEN",
     "bouc-wen-std": "hystdisc.models.families.boucwen:BOUC_WEN_STD",
+    "spencer": "hystdisc.models.families.spencer:SPENCER",
 }
+
+#: The families that are state-space systems of their own (no term form, no stage-1
+#: shape): fitted after the term families, from their optima.
+SYSTEM_FAMILIES: tuple[str, ...] = ("spencer",)
 
 #: Effect name -> ``module:attribute`` of its effect object.
 EFFECTS: dict[str, str] = {
@@ -67,6 +74,11 @@ def _resolve(path: str) -> Any:
 def family_names() -> tuple[str, ...]:
     """Names of the registered families, in the order reports list them."""
     return tuple(FAMILIES)
+
+
+def term_family_names() -> tuple[str, ...]:
+    """Names of the families written in the term form (stage 1 has a shape for each)."""
+    return tuple(n for n in FAMILIES if n not in SYSTEM_FAMILIES)
 
 
 def effect_names() -> tuple[str, ...]:

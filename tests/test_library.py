@@ -18,7 +18,7 @@ from hystdisc.discovery import (
 )
 from hystdisc.discovery.shapes import N_RANGE, shape_of
 from hystdisc.models import HYSTERESIS_TERM_NAMES, TORQUE_TERM_NAMES, Z_TORQUE_TERMS
-from hystdisc.registry import family_names, get_family
+from hystdisc.registry import get_family, term_family_names
 
 
 def _state(n=200, seed=0):
@@ -221,7 +221,7 @@ def test_shape_grids_and_clipping():
 
 
 def test_family_shape_follows_the_registry():
-    assert list(FAMILY_SHAPE) == list(family_names())
+    assert list(FAMILY_SHAPE) == list(term_family_names())
     assert FAMILY_SHAPE == {
         "bingham": "none",
         "dahl": "dahl",

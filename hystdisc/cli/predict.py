@@ -46,7 +46,7 @@ def run(args: argparse.Namespace) -> int:
             f"{args.results}: no fit of family '{args.family}'; fix: use one of "
             f"{', '.join(res.families)}"
         )
-    tm = res.term_model(args.family)
+    tm = res.simulation_model(args.family)
     if args.experiment is None:
         args.experiment = res.experiment
     data = load_data(args, args.data)

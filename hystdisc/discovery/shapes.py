@@ -223,7 +223,7 @@ def shape_of(family) -> str:
     raise ValueError(f"no hysteresis shape has the terms of family '{family.name}'")
 
 
-#: Hysteresis shape of each family, in the registry's order.
+#: Hysteresis shape of each family in term form, in the registry's order.
 FAMILY_SHAPE: dict[str, str] = {
-    name: shape_of(registry.get_family(name)) for name in registry.family_names()
+    name: shape_of(registry.get_family(name)) for name in registry.term_family_names()
 }

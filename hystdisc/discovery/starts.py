@@ -10,7 +10,7 @@ from hystdisc.discovery.data import EqData
 from hystdisc.discovery.shapes import FAMILY_SHAPE, SHAPES
 from hystdisc.discovery.varpro import coef_dict, varpro
 from hystdisc.models import HYSTERESIS_TERM_NAMES, TermModel
-from hystdisc.registry import family_names, get_family
+from hystdisc.registry import get_family, term_family_names
 
 
 def family_start(
@@ -104,7 +104,7 @@ def describe_structure(torque: Sequence[str], shape: str) -> str:
     "bouc-wen hysteresis with torque terms ['theta_dot', 'z']"
     """
     tset = {t for t in torque if t not in ("theta", "1")}
-    for name in family_names():
+    for name in term_family_names():
         fam = get_family(name)
         if FAMILY_SHAPE[name] == shape and set(fam.torque_terms) == tset:
             return fam.title

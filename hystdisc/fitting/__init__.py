@@ -13,6 +13,7 @@ from hystdisc.fitting.lm import levenberg_marquardt
 from hystdisc.fitting.output_error import OEFit, OutputErrorFitter
 from hystdisc.fitting.parametrization import (
     FamilyParametrization,
+    FamilySystemParametrization,
     Parametrization,
     SystemParametrization,
     TermParametrization,
@@ -22,6 +23,7 @@ from hystdisc.fitting.simulate import simulate_entries, simulate_systems
 
 __all__ = [
     "FamilyParametrization",
+    "FamilySystemParametrization",
     "FitData",
     "OEFit",
     "OutputErrorFitter",

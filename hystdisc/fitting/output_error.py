@@ -107,8 +107,19 @@ class OEFit:
 
     @property
     def term_model(self) -> TermModel:
-        """The fitted model in term form."""
+        """The fitted model in term form (a system family has none: see :attr:`model`)."""
         return self.par.terms(self.x)
+
+    @property
+    def model(self):
+        """The fitted model as the simulator takes it: a :class:`TermModel`, or a
+        state-space model with its parameter values (a system family)."""
+        return self.par.model(self.x)
+
+    @property
+    def is_system(self) -> bool:
+        """The fitted model is a state-space system (no term form)."""
+        return not isinstance(self.model, TermModel)
 
 
 class OutputErrorFitter:

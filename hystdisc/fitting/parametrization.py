@@ -262,3 +262,52 @@ class SystemParametrization(Parametrization):
 
     def simulate(self, data, models, runs, nuis, status_out=None, work_out=None):
         return simulate_systems(data, models, runs, nuis, status_out, work_out)
+
+
+class FamilySystemParametrization(SystemParametrization):
+    """A system family's own parameters (+ rig ``k_s``/``J`` + effect parameters), like
+    :class:`FamilyParametrization` for the families in term form.
+
+    The reported parameters add the family's identifiable combinations
+    (:meth:`~hystdisc.models.families.base.SystemFamily.derived`), with intervals.
+
+    Examples
+    --------
+    >>> par = FamilySystemParametrization("spencer", "driven", {"c1_a": 9.0})
+    >>> par.names[:3], par.has_state()
+    (['alpha_a', 'alpha_b', 'c0_a'], True)
+    >>> sorted(k for k in par.params(par.x0) if k.startswith("c_post"))
+    ['c_post_0', 'c_post_1']
+    """
+
+    def __init__(
+        self,
+        family: str | Family,
+        experiment: str,
+        start: dict[str, float],
+        effects: tuple[str, ...] = (),
+        fixed: dict[str, float] | None = None,
+    ) -> None:
+        self.family = get_family(family) if isinstance(family, str) else family
+        self.experiment = experiment
+        self.effects = tuple(effects)
+        super().__init__(self.family.system(experiment, self.effects), start, fixed)
+        self.normalization = self.family.normalization
+
+    def like(
+        self, start: dict[str, float], effects: tuple[str, ...]
+    ) -> FamilySystemParametrization:
+        """The same family and fixed parameters with other ``effects``."""
+        return FamilySystemParametrization(self.family, self.experiment, start, effects, self.fixed)
+
+    def values(self, x: np.ndarray) -> dict[str, float]:
+        """The model's own parameter values (free and fixed) for the free vector ``x``."""
+        return super().params(x)
+
+    def params(self, x: np.ndarray) -> dict[str, float]:
+        p = self.values(x)
+        p.update(self.family.derived(p))
+        return p
+
+    def model(self, x: np.ndarray):
+        return (self.system, self.values(x))

@@ -15,7 +15,7 @@ from hystdisc.data.envelope import Envelope, RunEnvelope
 from hystdisc.discovery.differentiation import differentiate
 from hystdisc.models import TermModel
 from hystdisc.registry import get_experiment
-from hystdisc.simulation import simulate_driven_runs, simulate_mech
+from hystdisc.simulation import simulate_driven_runs, simulate_mech, simulate_system
 
 
 def beyond_envelope(envelope: dict | None, dataset: Dataset, unit: str = "rad") -> list[str]:
@@ -43,10 +43,31 @@ def beyond_envelope(envelope: dict | None, dataset: Dataset, unit: str = "rad") 
     return env.beyond(new, unit=unit)
 
 
+def _predict_system(model, runs, ders, exp) -> list[np.ndarray]:
+    """:func:`predict_dataset` for a state-space model with its values (a system family):
+    driven runs follow their imposed motion, release and forced runs start from the first
+    smoothed angle and velocity with the internal states at 0."""
+    system, values = model
+    out = []
+    for r, d in zip(runs, ders, strict=True):
+        if exp.motion_imposed:
+            x0, inputs = system.initial_state(), {"theta": d.theta, "theta_dot": d.theta_dot}
+        else:
+            x0 = system.initial_state(
+                theta=d.theta[0], theta_dot=0.0 if exp.starts_at_rest else d.theta_dot[0]
+            )
+            inputs = {"u": np.asarray(r.input, dtype=float)} if exp.has_input else {}
+        out.append(simulate_system(system, r.t, x0, values, current=r.current, inputs=inputs).y)
+    return out
+
+
 def predict_dataset(
-    tm: TermModel, dataset: Dataset, experiment: str | None = None, input_hold: str = "cubic"
+    tm, dataset: Dataset, experiment: str | None = None, input_hold: str = "cubic"
 ) -> list[np.ndarray]:
     """Predicted measured signal (theta, or torque for driven) of every run of ``dataset``.
+
+    ``tm`` is a model in term form, or a state-space model with its parameter values (a
+    system family's fit: ``OEFit.model``).
 
     Examples
     --------
@@ -63,6 +84,8 @@ def predict_dataset(
     for r in runs:
         noise = estimate_noise(r.theta, r.fs)
         ders.append(differentiate(r.t, r.theta, noise))
+    if not isinstance(tm, TermModel):
+        return _predict_system(tm, runs, ders, exp)
     if exp.motion_imposed:
         out, _ = simulate_driven_runs(
             tm,

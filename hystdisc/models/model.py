@@ -51,6 +51,16 @@ class Model:
     def k_s(self) -> float:
         return self.params["k_s"]
 
+    def system(self, experiment: str):
+        """The model as a state-space system with its values, for a system family
+        (:class:`~hystdisc.models.families.base.SystemFamily`)."""
+        sys = self.family.system(experiment, tuple(self.effects))
+        names = {p.name for p in sys.params}
+        values = {k: v for k, v in self.params.items() if k in names}
+        for ep in self.effects.values():
+            values.update(ep)
+        return sys, values
+
     def to_terms(self) -> TermModel:
         """The generic term form of this model (spring, damper and effects)."""
         tm = self.family.to_terms(self.params)

@@ -37,10 +37,17 @@ from collections.abc import Mapping
 import numba
 import numpy as np
 
-from hystdisc.models.compiled import N_BASE, TERM_SIZE, term_torque, term_vector, vector_rate
-from hystdisc.models.params import Param, check_params
+from hystdisc.models.compiled import (
+    N_BASE,
+    TERM_SIZE,
+    base_coefficients,
+    term_torque,
+    term_vector,
+    vector_rate,
+)
+from hystdisc.models.params import RIG_PARAMS, Param, check_params
 from hystdisc.models.terms import SIGN_EPS, TermModel
-from hystdisc.registry import get_experiment
+from hystdisc.registry import get_effect, get_experiment
 
 
 class StateSpaceModel:
@@ -183,3 +190,73 @@ class TermSystem(StateSpaceModel):
 
     def equations(self) -> str:
         return self.terms.equations()
+
+
+# ----------------------------------------------------------------------- system families
+# p layout of a system family's model: the effects' base coefficients (term form, current
+# folded in), eps, k_s, J, then the family's own block (see its module)
+EFFECTS_AT = 0
+EPS_AT = N_BASE
+KS_AT = N_BASE + 1
+J_AT = N_BASE + 2
+FAMILY_AT = N_BASE + 3
+
+
+class FamilySystem(StateSpaceModel):
+    """The state-space model of a system family (:class:`~hystdisc.models.families.base.SystemFamily`)
+    for one experiment type, with catalogued torque effects added.
+
+    Release and forced: the damper acts on the rig (``J theta'' = u - k_s theta - T``;
+    ``J`` is a parameter only when the experiment identifies it); driven: the motion is
+    imposed and the output is the damper's torque. The family's compiled functions read
+    the parameter vector laid out as: the effects' term-form coefficients (current folded
+    in), ``eps``, ``k_s``, ``J``, then the family's own block
+    (:meth:`~hystdisc.models.families.base.SystemFamily.block`).
+
+    Parameters
+    ----------
+    family : SystemFamily
+        The family (its ``driven`` and ``mech`` compiled functions, states and block).
+    experiment : str or Experiment
+        ``release``, ``driven`` or ``forced``.
+    effects : tuple of str
+        Catalogued effects whose torque terms are added to the damper's.
+    """
+
+    def __init__(self, family, experiment: str = "driven", effects: tuple[str, ...] = ()) -> None:
+        self.family = family
+        self.experiment = get_experiment(experiment)
+        self.effects = tuple(get_effect(e).name for e in effects)
+        self._effects = [get_effect(e) for e in self.effects]
+        exp = self.experiment
+        self.name = f"{family.name} ({exp.name})"
+        fam_params = tuple(p for p in family.params if p.name not in family.mech_drop)
+        if exp.motion_imposed:
+            self.states = family.driven_states
+            self.inputs, self.output = ("theta", "theta_dot"), "torque"
+            self.rate, self.observe = family.driven_rate, family.driven_output
+            rig: tuple[Param, ...] = ()
+            fam_params = family.params
+        else:
+            self.states = ("theta", "theta_dot", *family.mech_states)
+            self.inputs = ("u",) if exp.has_input else ()
+            self.output = "theta"
+            self.rate, self.observe = family.mech_rate, family.mech_output
+            rig = (RIG_PARAMS[0],) + ((RIG_PARAMS[1],) if exp.inertia_identifiable else ())
+        eff_params = tuple(p for e in self._effects for p in e.params)
+        self.params = (*fam_params, *rig, *eff_params)
+
+    def run_parameters(self, values: Mapping[str, float], current: float) -> np.ndarray:
+        v = self.check(values)
+        ks = v.get("k_s", 0.0)
+        torque: dict[str, float] = {}
+        for e in self._effects:
+            for k, c in e.to_torque(v, ks).items():
+                torque[k] = torque.get(k, 0.0) + c
+        head = base_coefficients(TermModel(torque), current)
+        tail = [SIGN_EPS, ks, v.get("J", 1.0)]
+        return np.concatenate([head, tail, self.family.block(v, current)])
+
+    def equations(self) -> str:
+        extra = "".join(f"\n+ {e.name}: {e.doc}" for e in self._effects)
+        return self.family.equations() + extra

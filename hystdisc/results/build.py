@@ -49,12 +49,34 @@ def family_entry(
         The table of :class:`~hystdisc.results.FamilyResult`.
     """
     fam = get_family(name)
+    if fit.is_system:  # a state-space family: no terms to compare with stage 1's
+        return {
+            **_common(fit, fam, admissibility),
+            "missing_terms": [],
+            "extra_terms": [],
+            "notes": list(fit.notes),
+            "term_model": None,
+            "system": system_entry(fit),
+            "converged": fit.success,
+        }
     # terms the fit really uses (a current term fixed at 0 for one current is not "added")
     tm = fit.term_model
     fam_t = {t for t in fam.torque_terms if tm.torque.get(t, 0.0) != 0.0}
     fam_h = {t for t in fam.hysteresis_terms if tm.hysteresis.get(t, 0.0) != 0.0}
     dt = set(discovered_terms["torque"]) - {"theta", "1"}
     dh = set(discovered_terms["hysteresis"])
+    return {
+        **_common(fit, fam, admissibility),
+        # hysteresis-side names are prefixed: theta_dot and |theta_dot|*z exist on both sides
+        "missing_terms": sorted(dt - fam_t) + [f"dz/dt: {t}" for t in sorted(dh - fam_h)],
+        "extra_terms": sorted(fam_t - dt) + [f"dz/dt: {t}" for t in sorted(fam_h - dh)],
+        "notes": list(fit.notes),
+        "term_model": term_model_to_dict(fit.term_model),
+        "converged": fit.success,
+    }
+
+
+def _common(fit: Any, fam: Any, admissibility: Any | None) -> dict:
     return {
         "parameters": _parameters(fit),
         "normalization": getattr(fit.par, "normalization", "") or fam.normalization,
@@ -63,12 +85,19 @@ def family_entry(
         "heldout_rms": fit.heldout_rms,
         "n_params": fit.n_params,
         **_admissible(admissibility),
-        # hysteresis-side names are prefixed: theta_dot and |theta_dot|*z exist on both sides
-        "missing_terms": sorted(dt - fam_t) + [f"dz/dt: {t}" for t in sorted(dh - fam_h)],
-        "extra_terms": sorted(fam_t - dt) + [f"dz/dt: {t}" for t in sorted(fam_h - dh)],
-        "notes": list(fit.notes),
-        "term_model": term_model_to_dict(fit.term_model),
-        "converged": fit.success,
+    }
+
+
+def system_entry(fit: Any) -> dict | None:
+    """The ``system`` table of a state-space fit (None for a term model)."""
+    if not fit.is_system:
+        return None
+    system, values = fit.model
+    return {
+        "family": system.family.name,
+        "experiment": system.experiment.name,
+        "effects": list(system.effects),
+        "values": {k: float(v) for k, v in values.items()},
     }
 
 
@@ -134,6 +163,7 @@ def build_results(disc: Any, dataset: Any) -> Results:
     sel = disc.family_fits_[disc.family_]
     dfit = disc.discovered_fit_
     loop = disc.loop_
+    final = loop.fit if loop is not None else sel
     forced = get_experiment(disc.experiment_).has_input
     data: dict[str, Any] = {
         "version": __version__,
@@ -159,7 +189,7 @@ def build_results(disc: Any, dataset: Any) -> Results:
         "declared": disc.declared_,
         "equal_fits": disc.equal_fits_,
         "families": fams,
-        "model": term_model_to_dict((loop.fit if loop is not None else sel).term_model),
+        "model": None if final.is_system else term_model_to_dict(final.term_model),
         "effects": loop.accepted if loop is not None else [],
         "unexplained": loop.unexplained if loop is not None else False,
         # the residual over the samples the fit uses (driven start-up excluded)
@@ -175,6 +205,7 @@ def build_results(disc: Any, dataset: Any) -> Results:
         },
         "envelope": disc.envelope_.to_dict(),
         "selection_note": disc.selection_note_,
+        "system_model": system_entry(final),
     }
     if loop is not None:
         data.update(

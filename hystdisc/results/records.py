@@ -136,7 +136,10 @@ class FamilyResult(Record):
     notes : list of str
         Remarks of the fit (bounds reached, parameters fixed).
     term_model : TermModelRecord
-        The fit in term form.
+        The fit in term form (None for a system family).
+    system : dict or None
+        A system family's fitted model (schema 4): ``family``, ``experiment``,
+        ``effects`` and the parameter ``values`` the simulator takes.
     converged : bool
         The optimizer's success flag.
     extra : dict
@@ -160,6 +163,7 @@ class FamilyResult(Record):
     extra_terms: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
     term_model: TermModelRecord | None = None
+    system: dict[str, Any] | None = None
     converged: bool = True
     extra: dict[str, Any] = field(default_factory=dict, repr=False)
 

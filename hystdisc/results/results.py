@@ -9,8 +9,9 @@ The file carries ``schema_version`` (:data:`SCHEMA_VERSION`). Schema 1 is the fi
 hystdisc 0.1 (the same keys, no ``schema_version``); schema 2 added ``schema_version``;
 schema 3 added the held-out judging and admissibility (``conditions``, ``envelope``,
 ``selection_note``, each family's and the final model's ``admissible`` and
-``violations``, each effect's ``heldout_rms_before``/``heldout_rms_after``). Older files
-are read as they are (the new keys absent) and written back as schema 3. A file of a newer schema is refused. To change the schema: add the attribute
+``violations``, each effect's ``heldout_rms_before``/``heldout_rms_after``); schema 4
+added the state-space families (each family's ``system``, the final ``system_model``).
+Older files are read as they are (the new keys absent) and written back as schema 4. A file of a newer schema is refused. To change the schema: add the attribute
 to its record (with a default, documented), bump :data:`SCHEMA_VERSION`, and migrate older
 tables in :func:`migrate`.
 
@@ -21,7 +22,7 @@ Examples
 ...     "families": {}, "model": {"torque": {"z": 1.0}}, "effects": [], "unexplained": False,
 ...     "residual": {}})
 >>> r.family, r.schema_version, r.model.torque
-('dahl', 3, {'z': 1.0})
+('dahl', 4, {'z': 1.0})
 >>> Results.from_json(r.to_json()).summary() == r.summary()
 True
 >>> list(r.summary())[:3]
@@ -53,7 +54,7 @@ from hystdisc.results.records import (
 )
 
 #: The ``results.json`` schema this version writes (1: hystdisc 0.1, no ``schema_version``).
-SCHEMA_VERSION = 3
+SCHEMA_VERSION = 4
 
 _FIX_RERUN = "fix: rerun hystdisc discover --json"
 
@@ -117,7 +118,8 @@ class Results(Record):
     families : dict of str to FamilyResult
         The output-error fit of every family.
     model : TermModelRecord
-        The final model in term form (selected family plus accepted effects).
+        The final model in term form (selected family plus accepted effects; None when
+        the family is a state-space system).
     effects : list of EffectStep
         Effects the closing loop accepted.
     unexplained : bool
@@ -148,6 +150,9 @@ class Results(Record):
         :class:`~hystdisc.data.envelope.Envelope`). ``predict`` warns beyond it.
     selection_note : str or None
         Why the selected family is not the one BIC alone would have chosen (schema 3).
+    system_model : dict or None
+        The final model of a system family (schema 4): ``family``, ``experiment``,
+        ``effects`` and the parameter ``values``.
     extra : dict
         Keys this version does not know (kept on a round trip).
     """
@@ -191,6 +196,7 @@ class Results(Record):
     conditions: dict[str, Any] | None = None
     envelope: dict[str, Any] | None = None
     selection_note: str | None = None
+    system_model: dict[str, Any] | None = None
     extra: dict[str, Any] = field(default_factory=dict, repr=False)
 
     # ----------------------------------------------------------------- JSON
@@ -247,7 +253,7 @@ class Results(Record):
             not isinstance(data, dict)
             or any(k not in data for k in ("families", "model", "experiment"))
             or not isinstance(data["families"], dict)
-            or not isinstance(data["model"], dict)
+            or not isinstance(data["model"] or data.get("system_model"), dict)
         ):
             raise HystdiscError(
                 f"{p}: not a hystdisc results.json (no 'families'/'model'/'experiment' keys); "
@@ -283,6 +289,33 @@ class Results(Record):
                 f"results: no usable model for {family or 'the selected family'} ({exc}); fix: "
                 "rerun hystdisc discover"
             ) from None
+
+    def simulation_model(self, family: str | None = None):
+        """The fitted model as the simulator takes it: the term form, or a system
+        family's state-space model with its parameter values (final model with effects,
+        or one family's fit).
+
+        Raises
+        ------
+        HystdiscError
+            When there is no such fit or its model is malformed.
+        """
+        rec = self.system_model if family is None else self.families[family].system
+        if not rec:
+            return self.term_model(family)
+        from hystdisc.registry import get_family
+
+        try:
+            fam = get_family(rec["family"])
+            system = fam.system(rec["experiment"], tuple(rec.get("effects", ())))
+            values = {k: float(v) for k, v in rec["values"].items()}
+            system.check(values)
+        except (KeyError, TypeError, ValueError, AttributeError, HystdiscError) as exc:
+            raise HystdiscError(
+                f"results: no usable model for {family or 'the selected family'} ({exc}); fix: "
+                "rerun hystdisc discover"
+            ) from None
+        return system, values
 
     @property
     def selected(self) -> FamilyResult:

@@ -30,7 +30,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hystdisc.data.envelope import Envelope
+from hystdisc.errors import HystdiscError
 from hystdisc.models import TermModel
+from hystdisc.simulation.ode import simulate_system
 from hystdisc.simulation.runs import simulate_driven_runs
 
 #: The envelope is checked up to this multiple of the training displacement and velocity.
@@ -43,6 +45,8 @@ SAMPLES_PER_CYCLE = 400
 REL_TOL = 1e-6
 #: Torque terms of the rig, not of the damper (conservative: they do no net work).
 RIG_TERMS = ("theta", "theta^3", "1")
+#: Parameters of the rig, not of the damper, in a system model's values.
+RIG_VALUES = ("k_s", "J", "k_3", "theta_off")
 
 
 @dataclass
@@ -70,8 +74,47 @@ def _damper(tm: TermModel) -> TermModel:
     )
 
 
+def _spring(model) -> tuple[float, float]:
+    """The rig spring's ``k_s`` and cubic ``k_3`` of a term model or a system model."""
+    if isinstance(model, TermModel):
+        return model.torque.get("theta", 0.0), model.torque.get("theta^3", 0.0)
+    _, values = model
+    return float(values.get("k_s", 0.0)), float(values.get("k_3", 0.0))
+
+
+def _driven_torques(model, ts, currents, ths, ws) -> tuple[list[np.ndarray], list[int]]:
+    """The damper's torque on imposed sine cycles (status 0: simulated, 1: diverged)."""
+    if isinstance(model, TermModel):
+        sims, status = simulate_driven_runs(
+            _damper(model), ts, currents, ths, ws, raise_on_divergence=False
+        )
+        return [s.torque for s in sims], list(status)
+    system, values = model
+    damper = system.family.system("driven", system.effects)
+    names = {p.name for p in damper.params}
+    # the rig's spring and offset are not the damper's (conservative: no net work)
+    vals = {k: v for k, v in values.items() if k in names and k not in RIG_VALUES}
+    out, status = [], []
+    for t, c, th, w in zip(ts, currents, ths, ws, strict=True):
+        try:
+            y = simulate_system(
+                damper,
+                t,
+                damper.initial_state(),
+                vals,
+                current=c,
+                inputs={"theta": th, "theta_dot": w},
+            ).y
+            out.append(y)
+            status.append(0 if np.all(np.isfinite(y)) else 1)
+        except HystdiscError:
+            out.append(np.full(t.size, np.nan))
+            status.append(1)
+    return out, status
+
+
 def check_admissible(
-    terms: TermModel,
+    terms,
     envelope: Envelope,
     factor: float = FACTOR,
     n_levels: int = 4,
@@ -82,8 +125,9 @@ def check_admissible(
 
     Parameters
     ----------
-    terms : TermModel
-        The model (damper, rig spring and effects) in term form.
+    terms : TermModel or (StateSpaceModel, dict)
+        The model (damper, rig spring and effects) in term form, or a system family's
+        model (:class:`~hystdisc.models.system.FamilySystem`) with its parameter values.
     envelope : Envelope
         The training envelope (:class:`~hystdisc.data.envelope.Envelope`).
     factor : float
@@ -103,7 +147,7 @@ def check_admissible(
     lo, hi = envelope.current_range
     currents = np.unique(np.linspace(lo, hi, n_currents)) if hi > lo else np.array([lo])
     # the spring: k_s + 3 k_3 theta^2 >= 0 for |theta| <= factor * a_max
-    ks, k3 = terms.torque.get("theta", 0.0), terms.torque.get("theta^3", 0.0)
+    ks, k3 = _spring(terms)
     stiff = ks + 3.0 * k3 * (factor * a_max) ** 2
     if ks < 0 or stiff < 0:
         out.violations.append(
@@ -114,7 +158,6 @@ def check_admissible(
         out.ok = not out.violations
         return out
     scales = factor / 2.0 ** np.arange(n_levels - 1, -1, -1)
-    damper = _damper(terms)
     cases = [(a, v, c) for a in scales for v in scales for c in currents]
     ts, ths, ws = [], [], []
     for a, v, _ in cases:
@@ -124,13 +167,11 @@ def check_admissible(
         ts.append(t)
         ths.append(amp * np.sin(2 * np.pi * f * t))
         ws.append(vel * np.cos(2 * np.pi * f * t))
-    sims, status = simulate_driven_runs(
-        damper, ts, [c for *_, c in cases], ths, ws, raise_on_divergence=False
-    )
+    torques, status = _driven_torques(terms, ts, [c for *_, c in cases], ths, ws)
     worst = None
-    for (a, v, c), sim, st, t, w in zip(cases, sims, status, ts, ws, strict=True):
+    for (a, v, c), torque, st, t, w in zip(cases, torques, status, ts, ws, strict=True):
         last = slice(-SAMPLES_PER_CYCLE - 1, None)
-        p = sim.torque[last] * w[last]
+        p = torque[last] * w[last]
         work = float(np.trapezoid(p, t[last])) if st == 0 else -np.inf
         scale = float(np.trapezoid(np.abs(p), t[last])) if st == 0 else 1.0
         if not work >= -REL_TOL * scale and (worst is None or work < worst[0]):

@@ -46,7 +46,7 @@ from hystdisc import registry
 from hystdisc.data import Dataset, Run, parse_toml, write_csv
 from hystdisc.errors import HystdiscError
 from hystdisc.models import Model, TermModel
-from hystdisc.simulation import simulate_driven_runs, simulate_mech
+from hystdisc.simulation import simulate_driven_runs, simulate_mech, simulate_system
 
 __all__ = [
     "DEFAULT_CURRENTS",
@@ -278,6 +278,11 @@ def _as_model(model: Model | TermModel | str) -> Model | TermModel:
     )
 
 
+def _is_system(model: Model | TermModel) -> bool:
+    """The model is a system family's (simulated by the error-controlled integrator)."""
+    return isinstance(model, Model) and model.family.is_system
+
+
 def _measure_theta(
     theta: np.ndarray, std: float, q: float | None, rng: np.random.Generator
 ) -> np.ndarray:
@@ -421,10 +426,20 @@ def generate(
             d["amplitude"] * 2 * np.pi * d["frequency"] * np.cos(2 * np.pi * d["frequency"] * t)
             for d, _ in cases
         ]
-        sims, _ = simulate_driven_runs(mdl, [t] * len(cases), [c for _, c in cases], ths, ws)
+        if _is_system(mdl):
+            sys, values = mdl.system(exp)
+            torques = [
+                simulate_system(
+                    sys, t, sys.initial_state(), values, c, {"theta": th, "theta_dot": w}
+                ).y
+                for (_, c), th, w in zip(cases, ths, ws, strict=True)
+            ]
+        else:
+            sims, _ = simulate_driven_runs(mdl, [t] * len(cases), [c for _, c in cases], ths, ws)
+            torques = [sim.torque for sim in sims]
         runs = []
-        for k, ((_, c), sim, th, w) in enumerate(zip(cases, sims, ths, ws, strict=True)):
-            torque = sim.torque + noise * rng.standard_normal(n)
+        for k, ((_, c), torque, th, w) in enumerate(zip(cases, torques, ths, ws, strict=True)):
+            torque = torque + noise * rng.standard_normal(n)
             theta_m = _measure_theta(th, theta_noise, q, rng)
             runs.append(Run(str(k), t.copy(), theta_m, c, torque=torque, theta_dot=w.copy()))
         return Dataset(runs, exp, source)
@@ -444,10 +459,25 @@ def generate(
     if kind.has_input:
         spec = _check_input_spec(input_spec)
         inputs = [make_input(spec, t, rng) for _ in cur]
-    sims, _ = simulate_mech(mdl, [t] * len(cur), cur, th0, inputs=inputs)
+    if _is_system(mdl):
+        sys, values = mdl.system(exp)
+        thetas = [
+            simulate_system(
+                sys,
+                t,
+                sys.initial_state(theta=th0[k]),
+                values,
+                c,
+                {"u": inputs[k]} if inputs is not None else {},
+            ).y
+            for k, c in enumerate(cur)
+        ]
+    else:
+        sims, _ = simulate_mech(mdl, [t] * len(cur), cur, th0, inputs=inputs)
+        thetas = [sim.theta for sim in sims]
     runs = []
-    for k, (c, sim) in enumerate(zip(cur, sims, strict=True)):
-        theta_m = _measure_theta(sim.theta, noise, q, rng)
+    for k, (c, theta) in enumerate(zip(cur, thetas, strict=True)):
+        theta_m = _measure_theta(theta, noise, q, rng)
         extra = {"input": inputs[k]} if inputs is not None else {}
         runs.append(Run(str(k), t.copy(), theta_m, c, **extra))
     return Dataset(runs, exp, source)

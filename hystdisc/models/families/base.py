@@ -48,5 +48,41 @@ class Family:
     def equations(self) -> str:  # pragma: no cover - abstract
         raise NotImplementedError
 
+    #: False: the family is a term model (:meth:`to_terms`); True: a state-space system
+    #: of its own (:class:`SystemFamily`).
+    is_system: bool = False
+
     def __repr__(self) -> str:
         return f"<Family {self.name}: {', '.join(self.param_names())}>"
+
+
+class SystemFamily(Family):
+    """A family that is a state-space system of its own (an internal degree of freedom, a
+    state the term form has no rate for): it is simulated by the error-controlled
+    integrator, not written in terms.
+
+    Subclasses provide :meth:`system` (the model for an experiment type, with added
+    torque effects) and may report identifiable combinations of their parameters
+    (:meth:`derived`) and the starts of an output-error fit (:meth:`starts`).
+    """
+
+    is_system = True
+
+    def system(self, experiment: str, effects: tuple[str, ...] = ()):  # pragma: no cover
+        """The :class:`~hystdisc.models.system.StateSpaceModel` of this family for an
+        experiment type, with the torque terms of ``effects`` added."""
+        raise NotImplementedError
+
+    def derived(self, p: Mapping[str, float]) -> dict[str, float]:
+        """Identifiable combinations of the parameters ``p`` (none by default)."""
+        return {}
+
+    def starts(self, base: Mapping[str, float]) -> list[tuple[str, dict[str, float]]]:
+        """Labelled starts of an output-error fit from a fitted standard Bouc-Wen ``base``."""
+        return [("defaults", self.defaults())]
+
+    def to_terms(self, p):
+        raise NotImplementedError(f"{self.name} is a state-space family: use system()")
+
+    def from_terms(self, tm):
+        raise NotImplementedError(f"{self.name} is a state-space family: use system()")

@@ -1,0 +1,226 @@
+"""Spencer et al.'s (1997) phenomenological MR-damper model: Bouc-Wen with an internal dashpot.
+
+The damper's two ends are the measured motion ``x`` and an internal node ``y``; a
+Bouc-Wen element, a dashpot ``c0`` and a spring ``k0`` act between them, a dashpot ``c1``
+ties the node to the other end, and ``k1`` is the accumulator's spring::
+
+    F      = c1 y' + k1 x
+    y'     = (alpha z + c0 x' + k0 (x - y)) / (c0 + c1)
+    z'     = A (x' - y') - beta (x' - y') |z|^n - gamma |x' - y'| z |z|^(n-1)
+    alpha  = alpha_a + alpha_b i,   c0 = c0_a + c0_b i,   c1 = c1_a + c1_b i
+
+For a rotary damper read angles and torques. The states are the stretch ``d = x - y`` of
+the Bouc-Wen element and ``z`` (both start at 0: the node starts with the motion).
+
+Identifiability. ``z`` is normalized to saturate at 1 (``A = beta + gamma``, as the
+standard Bouc-Wen family): Spencer's ``A`` and the scale of ``alpha`` are one direction.
+Spencer's ``x0`` only adds the constant force ``-k1 x0``, which data with their mean
+removed cannot tell from zero: it is left out. With ``c1`` much larger than ``c0`` the
+model is standard Bouc-Wen (``y`` stands still): then ``c1`` is not determined and
+the data identify the combinations :meth:`Spencer.derived` reports, the post-yield
+damping ``c0 c1 / (c0 + c1)`` and the yield force ``alpha c1 / (c0 + c1)`` at 0 A and at
+1 A. In a release or forced rig ``k1`` is the rig spring ``k_s`` and is left out.
+
+Examples
+--------
+>>> import numpy as np
+>>> from hystdisc.simulation import simulate_system
+>>> sys = SPENCER.system("driven")
+>>> sys.states, sys.inputs, sys.output
+(('d', 'z'), ('theta', 'theta_dot'), 'torque')
+>>> t = np.linspace(0.0, 2.0, 2001)
+>>> x, v = 0.3 * np.sin(2 * np.pi * t), 0.6 * np.pi * np.cos(2 * np.pi * t)
+>>> out = simulate_system(sys, t, sys.initial_state(), current=1.0,
+...                       inputs={"theta": x, "theta_dot": v})
+>>> bool(np.all(np.isfinite(out.y))), round(float(np.max(out.y)), 2)
+(True, 3.52)
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numba
+import numpy as np
+
+from hystdisc.models.compiled import N_BASE, term_rate, term_torque
+from hystdisc.models.families.base import SystemFamily
+from hystdisc.models.params import param_table
+from hystdisc.models.system import EPS_AT, FAMILY_AT, J_AT, KS_AT, FamilySystem
+
+# the family block: the 5 hysteresis coefficients of term_rate (A, 0, -beta, 0, -gamma),
+# n, alpha, c0, c1, k0, k1 (current folded in)
+_B = FAMILY_AT
+_N = _B + 5
+_AL = _N + 1
+_C0 = _N + 2
+_C1 = _N + 3
+_K0 = _N + 4
+_K1 = _N + 5
+
+
+@numba.njit(cache=True, inline="always")
+def _node_rate(p, x, v, d, z):
+    """y' of the internal node for motion ``x, v``, stretch ``d = x - y`` and ``z``."""
+    return (p[_AL] * z + p[_C0] * v + p[_K0] * d) / (p[_C0] + p[_C1])
+
+
+@numba.njit(cache=True, inline="always")
+def _force(p, x, v, d, z):
+    yd = _node_rate(p, x, v, d, z)
+    return p[_C1] * yd + p[_K1] * x + term_torque(p[:N_BASE], x, v, z, p[EPS_AT])
+
+
+@numba.njit(cache=True, nogil=True)
+def _driven_rate(x, u, p, dx):
+    d, z = x[0], x[1]
+    rd = u[1] - _node_rate(p, u[0], u[1], d, z)
+    dx[0] = rd
+    dx[1] = term_rate(p[_B:_N], p[_N], rd, z)
+
+
+@numba.njit(cache=True, nogil=True)
+def _driven_output(x, u, p):
+    return _force(p, u[0], u[1], x[0], x[1])
+
+
+@numba.njit(cache=True, nogil=True)
+def _mech_rate(x, u, p, dx):
+    th, w, d, z = x[0], x[1], x[2], x[3]
+    uu = u[0] if u.shape[0] > 0 else 0.0
+    rd = w - _node_rate(p, th, w, d, z)
+    dx[0] = w
+    dx[1] = (uu - p[KS_AT] * th - _force(p, th, w, d, z)) / p[J_AT]
+    dx[2] = rd
+    dx[3] = term_rate(p[_B:_N], p[_N], rd, z)
+
+
+@numba.njit(cache=True, nogil=True)
+def _mech_output(x, u, p):
+    return x[0]
+
+
+_PARAMS = """
+    # name    unit           lower  upper  default  doc
+    alpha_a   N*m            0      BIG    0.5      passive hysteretic torque
+    alpha_b   N*m/A          0      BIG    1.5      current-dependent hysteretic torque
+    c0_a      N*m*s/rad      0      BIG    0.5      passive damping beside the Bouc-Wen element
+    c0_b      N*m*s/(rad*A)  0      BIG    0.6      its current dependence
+    c1_a      N*m*s/rad      1e-9   BIG    5.0      passive damping of the internal node
+    c1_b      N*m*s/(rad*A)  0      BIG    2.0      its current dependence
+    k0        N*m/rad        0      BIG    0.5      stiffness beside the Bouc-Wen element
+    k1        N*m/rad        0      BIG    0.0      accumulator stiffness (driven only)
+    beta      1/rad          -BIG   BIG    5        shape (x_dot |z|^n term)
+    gamma     1/rad          -BIG   BIG    15       shape (|x_dot| z |z|^(n-1) term)
+    n         -              1e-4   10     2        exponent
+"""
+
+#: Ratios c1 / c0 of the starts from a Bouc-Wen fit; 13.5 is Spencer et al.'s (283/21).
+START_RATIOS = (3.0, 13.5, 60.0)
+
+
+class Spencer(SystemFamily):
+    """Spencer et al. (1997): Bouc-Wen with an internal dashpot (module docstring)."""
+
+    name = "spencer"
+    title = "Spencer (Bouc-Wen with an internal dashpot)"
+    params = param_table(_PARAMS)
+    normalization = "z_sat = 1 (A = beta + gamma)"
+    current_params = ("alpha_b", "c0_b", "c1_b")
+    current_laws = {"alpha": ("alpha_a", "alpha_b"), "c0": ("c0_a", "c0_b"), "c1": ("c1_a", "c1_b")}
+    #: Parameters a release or forced rig does not have (k1 is the rig spring there).
+    mech_drop = ("k1",)
+    driven_states = ("d", "z")
+    mech_states = ("d", "z")
+    driven_rate = staticmethod(_driven_rate)
+    driven_output = staticmethod(_driven_output)
+    mech_rate = staticmethod(_mech_rate)
+    mech_output = staticmethod(_mech_output)
+
+    def system(self, experiment: str, effects: tuple[str, ...] = ()) -> FamilySystem:
+        return FamilySystem(self, experiment, effects)
+
+    def block(self, p: Mapping[str, float], current: float) -> np.ndarray:
+        """The family's part of the parameter vector at ``current`` (see the module)."""
+        i = float(current)
+        b, g = p["beta"], p["gamma"]
+        return np.array(
+            [
+                b + g,  # A: z saturates at 1
+                0.0,
+                -b,
+                0.0,
+                -g,
+                p["n"],
+                p["alpha_a"] + p["alpha_b"] * i,
+                p["c0_a"] + p["c0_b"] * i,
+                p["c1_a"] + p["c1_b"] * i,
+                p["k0"],
+                p.get("k1", 0.0),
+            ]
+        )
+
+    def derived(self, p: Mapping[str, float]) -> dict[str, float]:
+        """Combinations the data identify when ``c1`` is not: the post-yield damping
+        ``c0 c1 / (c0 + c1)`` and the yield torque ``alpha c1 / (c0 + c1)``, at 0 A
+        (``_0``) and 1 A (``_1``); and ``A = beta + gamma``.
+
+        Examples
+        --------
+        >>> d = SPENCER.derived(SPENCER.defaults())
+        >>> round(d["c_post_0"], 4), round(d["alpha_yield_1"], 4)
+        (0.4545, 1.7284)
+        """
+        out = {"A": p["beta"] + p["gamma"]}
+        for i in (0, 1):
+            c0 = p["c0_a"] + p["c0_b"] * i
+            c1 = p["c1_a"] + p["c1_b"] * i
+            out[f"c_post_{i}"] = c0 * c1 / (c0 + c1)
+            out[f"alpha_yield_{i}"] = (p["alpha_a"] + p["alpha_b"] * i) * c1 / (c0 + c1)
+        return out
+
+    def starts(self, base: Mapping[str, float]) -> list[tuple[str, dict[str, float]]]:
+        """Starts from a standard Bouc-Wen fit ``base``: the internal dashpot ``c1`` at
+        :data:`START_RATIOS` times ``c0`` (Spencer et al.'s published ratio among them),
+        with ``alpha``, ``c0`` and ``A`` scaled so that the loop is Bouc-Wen's at the start.
+
+        Examples
+        --------
+        >>> bw = {"alpha_1": 1.0, "alpha_2": 2.0, "c_1": 0.5, "c_2": 0.5, "beta": 5.0,
+        ...       "gamma": 15.0, "n": 2.0, "k_s": 0.0}
+        >>> [label for label, _ in SPENCER.starts(bw)]
+        ['c1/c0 = 3', 'c1/c0 = 13.5', 'c1/c0 = 60']
+        >>> SPENCER.starts(bw)[1][1]["c1_a"] > SPENCER.starts(bw)[1][1]["c0_a"]
+        True
+        """
+        out = []
+        for m in START_RATIOS:
+            s = (1.0 + m) / m  # c0 c1/(c0+c1) = c_bw and alpha c1/(c0+c1) = alpha_bw
+            c0a, c0b = base["c_1"] * s, base["c_2"] * s
+            floor = 1e-3 * max(c0a + c0b, 1e-12)  # a node dashpot is never 0
+            start = {
+                "alpha_a": base["alpha_1"] * s,
+                "alpha_b": base["alpha_2"] * s,
+                "c0_a": c0a,
+                "c0_b": c0b,
+                "c1_a": max(m * c0a, floor),
+                "c1_b": m * c0b,
+                "k0": 0.0,
+                "k1": base.get("k_s", 0.0),
+                "beta": base["beta"] * s,
+                "gamma": base["gamma"] * s,
+                "n": base["n"],
+            }
+            out.append((f"c1/c0 = {m:g}", start))
+        return out
+
+    def equations(self) -> str:
+        return (
+            "T = c1*y_dot + k1*x,  c_j = c_j_a + c_j_b*i,  alpha = alpha_a + alpha_b*i\n"
+            "y_dot = (alpha*z + c0*x_dot + k0*(x - y)) / (c0 + c1)\n"
+            "dz/dt = A*(x_dot - y_dot) - beta*(x_dot - y_dot)*|z|^n "
+            "- gamma*|x_dot - y_dot|*z*|z|^(n-1),  A = beta + gamma"
+        )
+
+
+SPENCER = Spencer()
