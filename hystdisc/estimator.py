@@ -141,7 +141,9 @@ class Discovery(BaseEstimator):
         Overrides the dataset's experiment type.
     families : sequence of str, optional
         Families fitted and compared by output error (default: every registered family,
-        :func:`hystdisc.registry.family_names`).
+        :func:`hystdisc.registry.family_names`; the state-space families such as
+        ``spencer`` only on driven data, where the measured force shows their internal
+        state: name them to compare them on release or forced data).
     model : str, optional
         Declare the family instead of selecting one (it is still compared to no others).
     torque_terms : sequence of str
@@ -421,7 +423,8 @@ class Discovery(BaseEstimator):
         fam = FAMILIES[name]
         fixed = {p: 0.0 for p in fam.current_params} if self.single_current_ else {}
         bp = dict(base.params)
-        starts = fam.starts(bp)
+        vel = float(np.median([np.max(np.abs(w)) for w in fd.theta_dot]))
+        starts = fam.starts(bp, velocity=vel)
         for _, st in starts:
             for k in ("k_s", "J"):
                 if k in bp:
@@ -552,6 +555,10 @@ class Discovery(BaseEstimator):
         # stage 2: each family by output error (and the discovered structure when it is not
         # one of them), each fit on its own
         sys_fams = [n for n in fams if FAMILIES[n].is_system]
+        if self.model is None and self.families is None and not exp.motion_imposed:
+            # by default the state-space families are compared on driven data, where the
+            # force shows their internal state; name them to compare them on a rig
+            sys_fams = []
         fams = [n for n in fams if not FAMILIES[n].is_system]
         same = [
             n

@@ -12,7 +12,7 @@ Examples
 --------
 >>> from hystdisc import registry
 >>> registry.family_names()
-('bingham', 'dahl', 'lugre', 'bouc-wen', 'bouc-wen-std', 'spencer')
+('bingham', 'dahl', 'lugre', 'bouc-wen', 'bouc-wen-std', 'spencer', 'tanh')
 >>> registry.term_family_names()[-1]
 'bouc-wen-std'
 >>> registry.get_family("Bouc_Wen").name
@@ -40,11 +40,12 @@ FAMILIES: dict[str, str] = {
     "bouc-wen": "hystdisc.models.families.boucwen:BOUC_WEN",
     "bouc-wen-std": "hystdisc.models.families.boucwen:BOUC_WEN_STD",
     "spencer": "hystdisc.models.families.spencer:SPENCER",
+    "tanh": "hystdisc.models.families.tanh:TANH",
 }
 
 #: The families that are state-space systems of their own (no term form, no stage-1
 #: shape): fitted after the term families, from their optima.
-SYSTEM_FAMILIES: tuple[str, ...] = ("spencer",)
+SYSTEM_FAMILIES: tuple[str, ...] = ("spencer", "tanh")
 
 #: Effect name -> ``module:attribute`` of its effect object.
 EFFECTS: dict[str, str] = {

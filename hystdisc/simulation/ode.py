@@ -129,7 +129,7 @@ def _integrate(rate, observe, x0, t, U, p, rtol, atol, X, Y):
                     e += _E[s] * ks[s, i]
                 sc = atol + rtol * max(abs(x[i]), abs(x5[i]))
                 err += (hh * e / sc) ** 2
-            err = np.sqrt(err / n)
+            err = np.sqrt(err / n) if n > 0 else 0.0  # a model without states (algebraic)
             steps += 1
             if not np.isfinite(err) or steps > MAX_STEPS_PER_SAMPLE:
                 return 1

@@ -77,8 +77,11 @@ class SystemFamily(Family):
         """Identifiable combinations of the parameters ``p`` (none by default)."""
         return {}
 
-    def starts(self, base: Mapping[str, float]) -> list[tuple[str, dict[str, float]]]:
-        """Labelled starts of an output-error fit from a fitted standard Bouc-Wen ``base``."""
+    def starts(
+        self, base: Mapping[str, float], velocity: float = 1.0
+    ) -> list[tuple[str, dict[str, float]]]:
+        """Labelled starts of an output-error fit from a fitted standard Bouc-Wen ``base``
+        (``velocity``: the runs' median peak velocity, for the families that need a scale)."""
         return [("defaults", self.defaults())]
 
     def to_terms(self, p):

@@ -179,7 +179,9 @@ class Spencer(SystemFamily):
             out[f"alpha_yield_{i}"] = (p["alpha_a"] + p["alpha_b"] * i) * c1 / (c0 + c1)
         return out
 
-    def starts(self, base: Mapping[str, float]) -> list[tuple[str, dict[str, float]]]:
+    def starts(
+        self, base: Mapping[str, float], velocity: float = 1.0
+    ) -> list[tuple[str, dict[str, float]]]:
         """Starts from a standard Bouc-Wen fit ``base``: the internal dashpot ``c1`` at
         :data:`START_RATIOS` times ``c0`` (Spencer et al.'s published ratio among them),
         with ``alpha``, ``c0`` and ``A`` scaled so that the loop is Bouc-Wen's at the start.
