@@ -87,6 +87,7 @@ SCENARIO_KEYS = (
     "fs",
     "noise",
     "theta_noise",
+    "delay",
     "seed",
     "encoder_counts",
     "drives",
@@ -301,6 +302,7 @@ def generate(
     drives: Sequence[Mapping[str, float] | str] | None = None,
     input_spec: Mapping[str, Any] | None = None,
     theta_noise: float = 0.0,
+    delay: float = 0.0,
 ) -> Dataset:
     """Simulate a model on the rig and measure it with noise and quantization.
 
@@ -335,6 +337,11 @@ def generate(
         gets its own random phases.
     theta_noise : float
         Driven only: noise standard deviation on the measured ``theta`` (rad).
+    delay : float
+        Delay of the output channel behind the other, in s (driven and forced; the
+        ``channel_delay`` effect): the measured torque (driven) or angle (forced) is the
+        true one at ``t - delay``. Driven runs are simulated on the motion shifted by
+        ``delay`` (exact); forced outputs are shifted by linear interpolation.
 
     Returns
     -------
@@ -371,6 +378,12 @@ def generate(
     fs = _number(fs, "fs", positive=True)
     noise = _number(noise, "noise", nonneg=True)
     theta_noise = _number(theta_noise, "theta_noise", nonneg=True)
+    delay = _number(delay, "delay")
+    if delay and not (kind.motion_imposed or kind.has_input):
+        raise HystdiscError(
+            f"a delay between channels needs two channels, a {exp} experiment records one; "
+            "fix: drop the delay or use a driven or forced experiment"
+        )
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise HystdiscError(f"seed = {seed!r} is invalid; fix: give a whole number >= 0")
     q = None
@@ -421,7 +434,16 @@ def generate(
             d["amplitude"] * 2 * np.pi * d["frequency"] * np.cos(2 * np.pi * d["frequency"] * t)
             for d, _ in cases
         ]
-        sims, _ = simulate_driven_runs(mdl, [t] * len(cases), [c for _, c in cases], ths, ws)
+        if delay:  # the force the damper makes at t - delay, recorded at t
+            ts = t - delay
+            mot = [(d["amplitude"], 2 * np.pi * d["frequency"]) for d, _ in cases]
+            shifted = [a * np.sin(om * ts) for a, om in mot]
+            wshift = [a * om * np.cos(om * ts) for a, om in mot]
+        else:
+            shifted, wshift = ths, ws
+        sims, _ = simulate_driven_runs(
+            mdl, [t] * len(cases), [c for _, c in cases], shifted, wshift
+        )
         runs = []
         for k, ((_, c), sim, th, w) in enumerate(zip(cases, sims, ths, ws, strict=True)):
             torque = sim.torque + noise * rng.standard_normal(n)
@@ -447,7 +469,7 @@ def generate(
     sims, _ = simulate_mech(mdl, [t] * len(cur), cur, th0, inputs=inputs)
     runs = []
     for k, (c, sim) in enumerate(zip(cur, sims, strict=True)):
-        theta_m = _measure_theta(sim.theta, noise, q, rng)
+        theta_m = _measure_theta(np.interp(t - delay, t, sim.theta), noise, q, rng)
         extra = {"input": inputs[k]} if inputs is not None else {}
         runs.append(Run(str(k), t.copy(), theta_m, c, **extra))
     return Dataset(runs, exp, source)
@@ -515,7 +537,7 @@ def load_scenario(path: str | os.PathLike[str]) -> dict[str, Any]:
 
     Keys: ``model`` (family), ``[params]``, ``[effects.<name>]`` tables (an empty table
     takes the effect's defaults), ``currents``, ``experiment``, ``theta0``, ``duration``,
-    ``fs``, ``noise``, ``theta_noise``, ``seed``, ``encoder_counts``, ``drives`` (tables
+    ``fs``, ``noise``, ``theta_noise``, ``delay`` (s), ``seed``, ``encoder_counts``, ``drives`` (tables
     ``{amplitude, frequency}`` or ``"A@f"`` strings), ``[input]``, ``output`` (CSV file
     name, relative to the scenario file) and the informative ``declared`` (the family a
     user would declare for these data) and ``description``. Unknown keys are an error.
@@ -595,7 +617,7 @@ def normalize_scenario(raw: Mapping[str, Any], source: str = "scenario") -> dict
         }
         if "currents" in raw:
             sc["currents"] = _check_currents(raw["currents"])
-        for key in ("duration", "fs", "noise", "theta_noise"):
+        for key in ("duration", "fs", "noise", "theta_noise", "delay"):
             if key in raw:
                 sc[key] = _number(raw[key], key)
         if "theta0" in raw:
@@ -659,6 +681,7 @@ def generate_from_scenario(scenario: Mapping[str, Any]) -> Dataset:
         "encoder_counts",
         "drives",
         "theta_noise",
+        "delay",
     ):
         if scenario.get(key) is not None:
             kw[key] = scenario[key]
