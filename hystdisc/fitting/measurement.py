@@ -30,6 +30,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from hystdisc.data import motion_frequency
 from hystdisc.fitting.data import FitData
 
 #: Harmonics of the fundamental used to reconstruct a periodic motion, at most.
@@ -117,16 +118,6 @@ def average_response(f: np.ndarray, window: int, dt: float) -> np.ndarray:
     return np.exp(-2j * np.pi * np.outer(f, j) * dt).mean(axis=1)
 
 
-def _fundamental(t: np.ndarray, x: np.ndarray) -> float:
-    """Frequency of an oscillating record from its mean-level crossings (0: none)."""
-    x = x - 0.5 * (np.max(x) + np.min(x))
-    k = np.flatnonzero(np.signbit(x[1:]) != np.signbit(x[:-1]))
-    if k.size < 3:
-        return 0.0
-    tc = t[k] + (t[k + 1] - t[k]) * x[k] / (x[k] - x[k + 1])
-    return (k.size - 1) / (2.0 * float(tc[-1] - tc[0]))
-
-
 def unfiltered_motion(t: np.ndarray, x: np.ndarray, window: int) -> tuple[np.ndarray, np.ndarray]:
     """The motion before a causal moving average of ``window`` samples, and its velocity.
 
@@ -160,7 +151,7 @@ def unfiltered_motion(t: np.ndarray, x: np.ndarray, window: int) -> tuple[np.nda
     t = np.asarray(t, dtype=float)
     x = np.asarray(x, dtype=float)
     dt = float(np.median(np.diff(t)))
-    f0 = _fundamental(t, x)
+    f0 = motion_frequency(t, x)
     skip = min(int(window), x.size // 2)  # the filter's start-up is not a filtered record
     if f0 > 0:
         ks = np.arange(1, MAX_HARMONICS + 1)
@@ -217,7 +208,8 @@ def apply_filter(
     output channel (``torque`` of a driven experiment, ``theta`` of the others) is in
     ``channels``; for a driven experiment whose motion channel (``theta``) was filtered,
     the imposed motion and velocity are reconstructed from ``recorded_motion`` (default:
-    ``data.theta``) by :func:`unfiltered_motion`. The first window of every run leaves the
+    ``data.theta``) by :func:`unfiltered_motion`, and a forced experiment's filtered
+    ``input`` likewise. The first window of every run leaves the
     residual (the filter's state there is unknown).
 
     Parameters
@@ -247,6 +239,9 @@ def apply_filter(
             continue
         if exp.motion_imposed and "theta" in channels:
             data.theta[k], data.theta_dot[k] = unfiltered_motion(data.t[k], motion[k], w)
+        if exp.has_input and "input" in channels:
+            data.u[k] = unfiltered_motion(data.t[k], data.u[k], w)[0]
+            data.du = None  # the input's spline slopes are recomputed
         data.mask[k] = data.mask[k].copy()
         data.mask[k][:w] = False
     return data
