@@ -46,7 +46,14 @@ from sklearn.base import BaseEstimator
 from threadpoolctl import threadpool_limits
 
 from hystdisc.closing import LoopResult, close_loop
-from hystdisc.data import Dataset, distinct_currents, estimate_noise, trim_release, validate
+from hystdisc.data import (
+    Dataset,
+    distinct_currents,
+    estimate_noise,
+    filter_windows,
+    trim_release,
+    validate,
+)
 from hystdisc.data.conditions import detect_conditions
 from hystdisc.data.envelope import Envelope
 from hystdisc.discovery import (
@@ -67,6 +74,7 @@ from hystdisc.fitting import (
     OEFit,
     OutputErrorFitter,
     TermParametrization,
+    apply_filter,
     predict_dataset,
 )
 from hystdisc.models import FAMILIES, format_equation, get_family
@@ -380,6 +388,9 @@ class Discovery(BaseEstimator):
             fd.theta_dot.append(d.theta_dot)
             fd.u.append(np.asarray(r.input, dtype=float) if exp.has_input else np.zeros(r.t.size))
             fd.mask.append(m if exp.motion_imposed else np.ones(r.t.size, dtype=bool))
+        if dataset.filter is not None:  # the fit sees the damper through the rig's filter
+            windows = filter_windows(dataset.filter, runs, dataset.source)
+            apply_filter(fd, windows, dataset.filter["channels"], [r.theta for r in runs])
         given = [r.condition for r in runs]
         if all(c is not None for c in given):
             fd.conditions = [str(c) for c in given]

@@ -22,7 +22,7 @@ Examples
 >>> registry.get_effect("nope")
 Traceback (most recent call last):
 ...
-hystdisc.errors.HystdiscError: unknown effect 'nope'; fix: use one of current_viscous, current_saturation, coulomb, quadratic_damping, cubic_stiffness, offset
+hystdisc.errors.HystdiscError: unknown effect 'nope'; fix: use one of current_viscous, current_saturation, coulomb, quadratic_damping, cubic_stiffness, offset, channel_delay
 """
 
 from __future__ import annotations
@@ -55,6 +55,7 @@ EFFECTS: dict[str, str] = {
     "quadratic_damping": "hystdisc.models.effects:QUADRATIC_DAMPING",
     "cubic_stiffness": "hystdisc.models.effects:CUBIC_STIFFNESS",
     "offset": "hystdisc.models.effects:OFFSET",
+    "channel_delay": "hystdisc.models.effects:CHANNEL_DELAY",
 }
 
 #: Experiment name -> ``module:attribute`` of its experiment object.

@@ -62,6 +62,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
             "noise std of the measured signal: rad (release/forced) or N*m (driven torque)",
         ),
         ("--theta-noise", "STD", "driven only: noise std of theta in rad"),
+        (
+            "--delay",
+            "SECONDS",
+            "driven/forced only: record the output channel (driven torque, forced angle) "
+            "SECONDS late against the other (a channel delay; default 0)",
+        ),
         ("--seed", "N", "random seed (default 0)"),
         ("--encoder-counts", "N", "quantize theta to 2*pi/N rad"),
     ):
@@ -177,6 +183,7 @@ def settings_from_args(args: argparse.Namespace) -> dict[str, Any]:
         ("fs", "fs"),
         ("noise", "noise"),
         ("theta_noise", "theta_noise"),
+        ("delay", "delay"),
     ):
         val = getattr(args, flag)
         if val is not None:

@@ -9,7 +9,8 @@ family:
    (``i^2*z`` in Bingham), the current effects the currents cannot identify (one current
    level; ``i^2`` needs three levels) and the spring effects (``offset``, ``cubic_stiffness``)
    when the rig has no spring (``k_s`` not significantly above 0, a characterization
-   machine).
+   machine); ``channel_delay`` (no torque term) only for experiments with two recorded
+   channels (driven, forced).
 2. **Diagnosis** (:func:`~hystdisc.closing.scores.score_effects`): the score (Lagrange-multiplier) test in
    output-error space. All candidates are appended to the model at value 0, and one
    batched forward-difference Jacobian at the current optimum gives each effect's

@@ -76,12 +76,16 @@ def candidate_effects(fit: OEFit, data: FitData) -> tuple[list[str], list[dict]]
     have |= {k for k, v in tm.torque.items() if v != 0.0}
     levels = current_levels(data.currents)
     spring = has_spring(fit)
+    exp = data.exp
     out, skipped = [], []
     for name, eff in EFFECTS.items():
         reason = None
         if name in par.effects:
             continue
-        if all(t in have for t in eff.terms):
+        if not eff.terms:  # a measurement effect: it needs two recorded channels
+            if not (exp.motion_imposed or exp.has_input):
+                reason = f"a {exp.name} experiment records one channel"
+        elif all(t in have for t in eff.terms):
             reason = f"{fam.name} already has {', '.join(eff.terms)}"
         elif any(t in Z_TORQUE_TERMS for t in eff.terms) and not tm.has_state:
             reason = f"{fam.name} has no hysteretic state z"

@@ -229,6 +229,9 @@ def _equation_evidence(
     out = {}
     for c in candidates:
         q = len(EFFECTS[c].terms)
+        if q == 0:  # no torque term: nothing to see in equation error
+            out[c] = (0.0, 0.0)
+            continue
         G = np.column_stack([np.concatenate([g[t] for g in G_rows]) for t in EFFECTS[c].terms])
         Gp = G - U @ (U.T @ G)
         if rss <= 0 or np.sqrt((Gp**2).sum()) <= 1e-8 * np.sqrt((G**2).sum()):

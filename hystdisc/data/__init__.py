@@ -28,7 +28,7 @@ The modules, one job each:
 ``csvfile``       :func:`read_csv`
 ``table``         :func:`read_table`
 ``mat``           :func:`read_mat` and the forked probe of damaged files
-``rigs``          :func:`read_rig`
+``rigs``          :func:`read_rig`, :func:`filter_windows`
 ``loading``       :func:`load`
 ``validation``    :func:`validate` and the checks of the motion
 ``preprocessing`` :func:`estimate_noise`, :func:`trim_release`
@@ -52,7 +52,7 @@ from hystdisc.data.dataset import CANONICAL_COLUMNS, EXPERIMENTS, Dataset, Run, 
 from hystdisc.data.loading import load
 from hystdisc.data.mat import read_mat
 from hystdisc.data.preprocessing import estimate_noise, trim_release
-from hystdisc.data.rigs import read_rig
+from hystdisc.data.rigs import filter_windows, motion_frequency, read_rig
 from hystdisc.data.table import read_table
 from hystdisc.data.text import parse_toml
 from hystdisc.data.units import unit_factor
@@ -60,6 +60,8 @@ from hystdisc.data.validation import LOCKED_RATIO, MIN_SAMPLES, validate
 from hystdisc.data.writers import atomic_write_bytes, atomic_write_text, write_csv
 
 __all__ = [
+    "filter_windows",
+    "motion_frequency",
     "CANONICAL_COLUMNS",
     "DATA_SUFFIXES",
     "DEFAULT_CURRENT_PATTERN",

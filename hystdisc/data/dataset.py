@@ -216,6 +216,9 @@ class Dataset:
         One of :data:`EXPERIMENTS`.
     source : str
         The file path(s) as text, used in messages.
+    filter : dict, optional
+        How the recorded signals were filtered before they reached hystdisc (a rig's
+        checked ``[filter]`` table, see :func:`hystdisc.data.read_rig`); None: not filtered.
 
     Examples
     --------
@@ -231,6 +234,7 @@ class Dataset:
     runs: list[Run]
     experiment: str
     source: str = ""
+    filter: dict[str, Any] | None = None
 
     def __post_init__(self) -> None:
         self.runs = list(self.runs)
@@ -269,7 +273,7 @@ class Dataset:
                 runs = [r for r, keep in zip(self.runs, items, strict=True) if keep]
             else:
                 runs = [self._pick(i) for i in items]
-        return Dataset(list(runs), self.experiment, self.source)
+        return Dataset(list(runs), self.experiment, self.source, self.filter)
 
     def _pick(self, key: int | str) -> Run:
         if isinstance(key, str):

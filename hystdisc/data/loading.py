@@ -146,7 +146,9 @@ def load(
             done_mats = True
             continue
         datasets.append((f, _read_file(f, opts)))
-    return _join(datasets, label)
+    out = _join(datasets, label)
+    out.filter = settings["filter"]
+    return out
 
 
 def _mats_split_signals(mats: list[Path], colmap: Mapping[str, Any]) -> bool:

@@ -5,11 +5,14 @@
 :class:`SystemParametrization` for any state-space model) maps free parameters to a model
 and simulates it (:mod:`hystdisc.fitting.simulate`); :class:`OutputErrorFitter` fits it with :func:`levenberg_marquardt` and returns
 an :class:`OEFit` (parameters, 95 % intervals, identifiability, BIC, held-out error);
-:func:`predict_dataset` simulates a fitted model on new runs.
+:func:`predict_dataset` simulates a fitted model on new runs;
+:mod:`hystdisc.fitting.measurement` puts the measurement chain (a channel delay, a rig's
+filter) between the simulated and the recorded output.
 """
 
 from hystdisc.fitting.data import FitData
 from hystdisc.fitting.lm import levenberg_marquardt
+from hystdisc.fitting.measurement import apply_filter
 from hystdisc.fitting.output_error import OEFit, OutputErrorFitter
 from hystdisc.fitting.parametrization import (
     FamilyParametrization,
@@ -22,6 +25,7 @@ from hystdisc.fitting.predict import predict_dataset
 from hystdisc.fitting.simulate import simulate_entries, simulate_systems
 
 __all__ = [
+    "apply_filter",
     "FamilyParametrization",
     "FamilySystemParametrization",
     "FitData",

@@ -51,6 +51,9 @@ class FitData:
     du: list[np.ndarray] | None = None  # forced: spline slopes of the input (cached)
     steps: list[int] | None = None  # decimation factor of each run (sub-step caps scale)
     conditions: list[str] | None = None  # each run's test condition (None: one per run)
+    #: each run's causal moving-average window (measured samples) of the recorded output,
+    #: applied to the simulated output too (None: not filtered; see fitting/measurement.py)
+    filter_windows: list[int] | None = None
     _bulk: FitData | None = field(default=None, init=False, repr=False, compare=False)
     _bulk_done: bool = field(default=False, init=False, repr=False, compare=False)
 
@@ -72,6 +75,10 @@ class FitData:
     def n_runs(self) -> int:
         """Number of runs."""
         return len(self.t)
+
+    def run_filters(self) -> list[int]:
+        """Each run's output filter window in measured samples (0: not filtered)."""
+        return list(self.filter_windows) if self.filter_windows is not None else [0] * self.n_runs
 
     def run_steps(self) -> list[int]:
         """Each run's decimation factor against the data it was measured as (1: all)."""
@@ -130,6 +137,7 @@ class FitData:
             du,
             [q * s for q, s in zip(qs, self.run_steps(), strict=True)],
             self.conditions,
+            self.filter_windows,
         )
 
     def subset(self, idx: list[int]) -> FitData:
@@ -150,6 +158,7 @@ class FitData:
             None if self.du is None else pick(self.du),
             None if self.steps is None else pick(self.steps),
             None if self.conditions is None else pick(self.conditions),
+            None if self.filter_windows is None else pick(self.filter_windows),
         )
 
     def folds(self) -> list[list[int]]:

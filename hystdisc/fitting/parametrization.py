@@ -150,6 +150,8 @@ class FamilyParametrization(Parametrization):
         for e in self.effects:
             for k, v in EFFECTS[e].to_torque(p, p["k_s"]).items():
                 tm.torque[k] = tm.torque.get(k, 0.0) + v
+        if "channel_delay" in self.effects:
+            tm.delay = p["tau_d"]
         return tm
 
 

@@ -3,9 +3,10 @@
 :func:`simulate_entries` runs (term model, run) pairs on the fixed-step term kernels in
 one compiled call (the seed's families, effects, discovered structures);
 :func:`simulate_systems` runs any :class:`~hystdisc.models.system.StateSpaceModel` with
-the error-controlled integrator. Both return each entry's predicted output, with a
-diverged entry's non-finite samples replaced by a large finite value the optimizer backs
-away from.
+the error-controlled integrator. Both return each entry's predicted output as the
+acquisition records it (a channel delay and a declared filter applied:
+:func:`~hystdisc.fitting.measurement.measured_output`), with a diverged entry's non-finite
+samples replaced by a large finite value the optimizer backs away from.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ import numpy as np
 
 from hystdisc.errors import HystdiscError
 from hystdisc.fitting.data import FitData
+from hystdisc.fitting.measurement import measured_output
 from hystdisc.models import TermModel
 from hystdisc.models.compiled import N_BASE, base_coefficients
 from hystdisc.models.system import StateSpaceModel
@@ -113,10 +115,12 @@ def simulate_entries(
             )
     res = [out[offsets[e] : offsets[e + 1]] for e in range(ne)]
     bad = []
-    for e in range(ne):
+    windows = data.run_filters()
+    for e, (tm, r) in enumerate(zip(models, runs, strict=True)):
         diverged = bool(status[e]) or not np.all(np.isfinite(res[e]))
         if diverged:
             res[e] = np.where(np.isfinite(res[e]), res[e], DIVERGED)
+        res[e] = measured_output(data.t[r], res[e], tm.delay, windows[r], steps[r])
         bad.append(diverged)
     if status_out is not None:
         status_out.extend(bad)
@@ -162,6 +166,8 @@ def simulate_systems(
         Receive each entry's divergence flag and integration work (0: not counted).
     """
     out = []
+    windows = data.run_filters()
+    steps = data.run_steps()
     for (model, values), r, nu in zip(systems, runs, nuis, strict=True):
         names = data.exp.initial_state(has_z="z" in model.states)
         x0 = _system_start(model, names, nu)
@@ -181,7 +187,8 @@ def simulate_systems(
             y, bad = np.full(data.t[r].size, np.nan), True
         if bad:
             y = np.where(np.isfinite(y), y, DIVERGED)
-        out.append(y)
+        tau = float(values.get("tau_d", 0.0))
+        out.append(measured_output(data.t[r], y, tau, windows[r], steps[r]))
         if status_out is not None:
             status_out.append(bad)
         if work_out is not None:

@@ -120,3 +120,26 @@ OFFSET = Effect(
     lambda p, ks: {"1": -ks * p["theta_off"]},
     lambda c, ks: {"theta_off": -c.get("1", 0.0) / ks if ks else 0.0},
 )
+
+#: Admissible channel delay [s]: either sign, at most this long (a delay of a tenth of a
+#: second between two channels of one acquisition is not a delay but a wrong record).
+MAX_DELAY = 0.1
+
+CHANNEL_DELAY = Effect(
+    "channel_delay",
+    (
+        Param(
+            "tau_d",
+            "s",
+            -MAX_DELAY,
+            MAX_DELAY,
+            0.002,
+            "delay of the output channel behind the motion (driven) or the input (forced)",
+        ),
+    ),
+    (),
+    "a time delay between the two recorded channels: the measured output is the model's "
+    "y(t - tau_d) (driven and forced experiments, fractional samples)",
+    lambda p, ks: {},
+    lambda c, ks: {"tau_d": 0.0},
+)

@@ -94,12 +94,16 @@ class TermModel:
         Exponent used by the ``|z|^n`` hysteresis terms.
     J : float
         Inertia (mass); only used by ``forced`` experiments.
+    delay : float
+        Delay of the measured output behind the model's, in s (the ``channel_delay``
+        effect): the output is recorded as ``y(t - delay)``; 0 for none.
     """
 
     torque: dict[str, float] = field(default_factory=dict)
     hysteresis: dict[str, float] = field(default_factory=dict)
     n: float = 1.0
     J: float = 1.0
+    delay: float = 0.0
 
     def __post_init__(self) -> None:
         for name in self.torque:
@@ -117,6 +121,7 @@ class TermModel:
         self.hysteresis = {k: float(v) for k, v in self.hysteresis.items()}
         self.n = float(self.n)
         self.J = float(self.J)
+        self.delay = float(self.delay)
 
     def torque_vector(self) -> np.ndarray:
         """Coefficients in ``TORQUE_TERM_NAMES`` order (absent terms are 0)."""
@@ -154,10 +159,18 @@ class TermModel:
         hyst = dict(self.hysteresis)
         for k, v in other.hysteresis.items():
             hyst[k] = hyst.get(k, 0.0) + v
-        return TermModel(torque, hyst, self.n, self.J)
+        return TermModel(torque, hyst, self.n, self.J, self.delay)
 
     def equations(self, precision: int = 4) -> str:
-        """pysindy-style two-line print of the model."""
+        """pysindy-style two-line print of the model (a third line for a channel delay).
+
+        Examples
+        --------
+        >>> print(TermModel({"theta_dot": 2.0}, delay=0.004).equations())
+        T = 2 theta_dot
+        dz/dt = 0
+        measured(t) = model(t - 0.004 s)
+        """
 
         def power(e: float) -> str:  # "*|z|^e", written plainly for e = 0 and 1
             txt = f"{e:.{precision}g}"
@@ -165,7 +178,10 @@ class TermModel:
 
         rate = format_equation("dz/dt", self.hysteresis, precision)
         rate = rate.replace("*|z|^(n-1)", power(self.n - 1.0)).replace("*|z|^n", power(self.n))
-        return format_equation("T", self.torque, precision) + "\n" + rate
+        out = format_equation("T", self.torque, precision) + "\n" + rate
+        if self.delay:
+            out += f"\nmeasured(t) = model(t - {self.delay:.{precision}g} s)"
+        return out
 
 
 def format_equation(lhs: str, coefs: Mapping[str, float], precision: int = 4) -> str:

@@ -30,7 +30,10 @@ def term_model_to_dict(tm: TermModel) -> dict:
     >>> term_model_to_dict(TermModel({"z": 1.0}, {"theta_dot": 2.0}))
     {'torque': {'z': 1.0}, 'hysteresis': {'theta_dot': 2.0}, 'n': 1.0, 'J': 1.0}
     """
-    return {"torque": dict(tm.torque), "hysteresis": dict(tm.hysteresis), "n": tm.n, "J": tm.J}
+    out = {"torque": dict(tm.torque), "hysteresis": dict(tm.hysteresis), "n": tm.n, "J": tm.J}
+    if tm.delay:
+        out["delay"] = tm.delay  # the channel delay [s] (absent: 0, as older records)
+    return out
 
 
 def term_model_from_dict(d: Any) -> TermModel:
@@ -40,6 +43,7 @@ def term_model_from_dict(d: Any) -> TermModel:
         {k: float(v) for k, v in d.get("hysteresis", {}).items()},
         float(d.get("n", 1.0)),
         float(d.get("J", 1.0)),
+        float(d.get("delay", 0.0) or 0.0),
     )
 
 
@@ -57,6 +61,9 @@ class TermModelRecord(Record):
         Exponent of the hysteresis shape.
     J : float
         Inertia (1 unless the experiment is forced).
+    delay : float
+        Delay of the measured output behind the model's, in s (``channel_delay``; 0 and
+        absent in records without it).
     extra : dict
         Keys this version does not know (kept on a round trip).
     """
@@ -65,6 +72,7 @@ class TermModelRecord(Record):
     hysteresis: dict[str, float] = field(default_factory=dict)
     n: float = 1.0
     J: float = 1.0
+    delay: float = 0.0
     extra: dict[str, Any] = field(default_factory=dict, repr=False)
 
     @classmethod
@@ -75,7 +83,7 @@ class TermModelRecord(Record):
     def to_term_model(self) -> TermModel:
         """The :class:`~hystdisc.models.TermModel` (ValueError/TypeError when malformed)."""
         tm = term_model_from_dict(self)
-        values = [*tm.torque.values(), *tm.hysteresis.values(), tm.n, tm.J]
+        values = [*tm.torque.values(), *tm.hysteresis.values(), tm.n, tm.J, tm.delay]
         if not all(math.isfinite(v) for v in values):
             raise ValueError("a coefficient is not finite")
         return tm

@@ -87,6 +87,7 @@ SCENARIO_KEYS = (
     "fs",
     "noise",
     "theta_noise",
+    "delay",
     "seed",
     "encoder_counts",
     "drives",
@@ -306,6 +307,7 @@ def generate(
     drives: Sequence[Mapping[str, float] | str] | None = None,
     input_spec: Mapping[str, Any] | None = None,
     theta_noise: float = 0.0,
+    delay: float = 0.0,
 ) -> Dataset:
     """Simulate a model on the rig and measure it with noise and quantization.
 
@@ -340,6 +342,11 @@ def generate(
         gets its own random phases.
     theta_noise : float
         Driven only: noise standard deviation on the measured ``theta`` (rad).
+    delay : float
+        Delay of the output channel behind the other, in s (driven and forced; the
+        ``channel_delay`` effect): the measured torque (driven) or angle (forced) is the
+        true one at ``t - delay``. Driven runs are simulated on the motion shifted by
+        ``delay`` (exact); forced outputs are shifted by linear interpolation.
 
     Returns
     -------
@@ -376,6 +383,12 @@ def generate(
     fs = _number(fs, "fs", positive=True)
     noise = _number(noise, "noise", nonneg=True)
     theta_noise = _number(theta_noise, "theta_noise", nonneg=True)
+    delay = _number(delay, "delay")
+    if delay and not (kind.motion_imposed or kind.has_input):
+        raise HystdiscError(
+            f"a delay between channels needs two channels, a {exp} experiment records one; "
+            "fix: drop the delay or use a driven or forced experiment"
+        )
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise HystdiscError(f"seed = {seed!r} is invalid; fix: give a whole number >= 0")
     q = None
@@ -426,16 +439,25 @@ def generate(
             d["amplitude"] * 2 * np.pi * d["frequency"] * np.cos(2 * np.pi * d["frequency"] * t)
             for d, _ in cases
         ]
+        if delay:  # the force the damper makes at t - delay, recorded at t
+            ts = t - delay
+            mot = [(d["amplitude"], 2 * np.pi * d["frequency"]) for d, _ in cases]
+            shifted = [a * np.sin(om * ts) for a, om in mot]
+            wshift = [a * om * np.cos(om * ts) for a, om in mot]
+        else:
+            shifted, wshift = ths, ws
         if _is_system(mdl):
             sys, values = mdl.system(exp)
             torques = [
                 simulate_system(
                     sys, t, sys.initial_state(), values, c, {"theta": th, "theta_dot": w}
                 ).y
-                for (_, c), th, w in zip(cases, ths, ws, strict=True)
+                for (_, c), th, w in zip(cases, shifted, wshift, strict=True)
             ]
         else:
-            sims, _ = simulate_driven_runs(mdl, [t] * len(cases), [c for _, c in cases], ths, ws)
+            sims, _ = simulate_driven_runs(
+                mdl, [t] * len(cases), [c for _, c in cases], shifted, wshift
+            )
             torques = [sim.torque for sim in sims]
         runs = []
         for k, ((_, c), torque, th, w) in enumerate(zip(cases, torques, ths, ws, strict=True)):
@@ -477,7 +499,7 @@ def generate(
         thetas = [sim.theta for sim in sims]
     runs = []
     for k, (c, theta) in enumerate(zip(cur, thetas, strict=True)):
-        theta_m = _measure_theta(theta, noise, q, rng)
+        theta_m = _measure_theta(np.interp(t - delay, t, theta), noise, q, rng)
         extra = {"input": inputs[k]} if inputs is not None else {}
         runs.append(Run(str(k), t.copy(), theta_m, c, **extra))
     return Dataset(runs, exp, source)
@@ -545,7 +567,7 @@ def load_scenario(path: str | os.PathLike[str]) -> dict[str, Any]:
 
     Keys: ``model`` (family), ``[params]``, ``[effects.<name>]`` tables (an empty table
     takes the effect's defaults), ``currents``, ``experiment``, ``theta0``, ``duration``,
-    ``fs``, ``noise``, ``theta_noise``, ``seed``, ``encoder_counts``, ``drives`` (tables
+    ``fs``, ``noise``, ``theta_noise``, ``delay`` (s), ``seed``, ``encoder_counts``, ``drives`` (tables
     ``{amplitude, frequency}`` or ``"A@f"`` strings), ``[input]``, ``output`` (CSV file
     name, relative to the scenario file) and the informative ``declared`` (the family a
     user would declare for these data) and ``description``. Unknown keys are an error.
@@ -625,7 +647,7 @@ def normalize_scenario(raw: Mapping[str, Any], source: str = "scenario") -> dict
         }
         if "currents" in raw:
             sc["currents"] = _check_currents(raw["currents"])
-        for key in ("duration", "fs", "noise", "theta_noise"):
+        for key in ("duration", "fs", "noise", "theta_noise", "delay"):
             if key in raw:
                 sc[key] = _number(raw[key], key)
         if "theta0" in raw:
@@ -689,6 +711,7 @@ def generate_from_scenario(scenario: Mapping[str, Any]) -> Dataset:
         "encoder_counts",
         "drives",
         "theta_noise",
+        "delay",
     ):
         if scenario.get(key) is not None:
             kw[key] = scenario[key]
