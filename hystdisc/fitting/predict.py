@@ -10,9 +10,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from hystdisc.data import Dataset, estimate_noise
+from hystdisc.data import Dataset, estimate_noise, filter_windows
 from hystdisc.data.envelope import Envelope, RunEnvelope
 from hystdisc.discovery.differentiation import differentiate
+from hystdisc.fitting.measurement import measured_output, unfiltered_motion
 from hystdisc.models import TermModel
 from hystdisc.registry import get_experiment
 from hystdisc.simulation import simulate_driven_runs, simulate_mech, simulate_system
@@ -84,6 +85,27 @@ def predict_dataset(
     for r in runs:
         noise = estimate_noise(r.theta, r.fs)
         ders.append(differentiate(r.t, r.theta, noise))
+    # the measurement chain: a declared filter (the motion the damper saw is rebuilt, the
+    # prediction averaged as the record was) and the model's channel delay
+    chans = tuple(dataset.filter["channels"]) if dataset.filter else ()
+    windows = filter_windows(dataset.filter, runs, dataset.source) if chans else [0] * len(runs)
+    if exp.motion_imposed and "theta" in chans:
+        for k, (r, w) in enumerate(zip(runs, windows, strict=True)):
+            if w > 1:
+                ders[k].theta, ders[k].theta_dot = unfiltered_motion(r.t, r.theta, w)
+    out_windows = windows if exp.output in chans else [0] * len(runs)
+    if isinstance(tm, TermModel):
+        delay = float(tm.delay)
+    else:
+        delay = float(tm[1].get("tau_d", 0.0))
+    preds = _predict(tm, runs, ders, exp, input_hold)
+    return [
+        measured_output(r.t, y, delay, w) for r, y, w in zip(runs, preds, out_windows, strict=True)
+    ]
+
+
+def _predict(tm, runs, ders, exp, input_hold: str) -> list[np.ndarray]:
+    """The model's output on every run (before the measurement chain)."""
     if not isinstance(tm, TermModel):
         return _predict_system(tm, runs, ders, exp)
     if exp.motion_imposed:
