@@ -9,13 +9,20 @@ from hystdisc.results import FamilyResult, ParameterResult
 
 #: The seed's section 5: per torque term, the parameter of each family that multiplies it
 #: (None: the family has no such term), and the term in term form.
-CORRESPONDENCE_FAMILIES = ("dahl", "bouc-wen", "bouc-wen-std", "lugre")
+#: Spencer's rows are its post-yield damping and yield torque (the combinations through the
+#: internal dashpot that match the others' terms); tanh's yield torque multiplies
+#: ``tanh(...)``, which saturates at 1 like z.
+CORRESPONDENCE_FAMILIES = ("dahl", "bouc-wen", "bouc-wen-std", "lugre", "spencer", "tanh")
 CORRESPONDENCE = (
-    ("θ̇ (viscous)", ("k_x", "c_1", "c_1", "sigma_2"), "theta_dot"),
-    ("z (hysteretic, 0 A)", ("k_wa", "alpha_1", "alpha_1", "sigma_a"), "z"),
-    ("i·z (hysteretic, per A)", ("k_wb", "alpha_2", "alpha_2", "sigma_0"), "i*z"),
-    ("i·θ̇ (viscous, per A)", (None, "c_2", "c_2", "sigma_b"), "i*theta_dot"),
-    ("ż (LuGre sigma_1; term |θ̇|·z)", (None, None, None, "sigma_1"), "|theta_dot|*z"),
+    ("θ̇ (viscous)", ("k_x", "c_1", "c_1", "sigma_2", "c_post_0", "c_a"), "theta_dot"),
+    ("z (hysteretic, 0 A)", ("k_wa", "alpha_1", "alpha_1", "sigma_a", "alpha_a", "alpha_a"), "z"),
+    (
+        "i·z (hysteretic, per A)",
+        ("k_wb", "alpha_2", "alpha_2", "sigma_0", "alpha_b", "alpha_b"),
+        "i*z",
+    ),
+    ("i·θ̇ (viscous, per A)", (None, "c_2", "c_2", "sigma_b", "c0_b", "c_b"), "i*theta_dot"),
+    ("ż (LuGre sigma_1; term |θ̇|·z)", (None, None, None, "sigma_1", None, None), "|theta_dot|*z"),
 )
 #: Units of the rig's own parameters (the families' units come from their definitions).
 RIG_UNITS = {"k_s": "N*m/rad per unit J", "J": "kg*m^2"}
@@ -186,6 +193,11 @@ def _saturation_torque(family: str, params: dict[str, ParameterResult], which: s
             return v["k_wa"] if which == "a" else v["k_wb"]
         if family in ("bouc-wen", "bouc-wen-std"):
             return v["alpha_1"] if which == "a" else v["alpha_2"]
+        if family == "spencer":  # through the internal dashpot: alpha c1 / (c0 + c1)
+            a0, a1 = v["alpha_yield_0"], v["alpha_yield_1"]
+            return a0 if which == "a" else a1 - a0
+        if family == "tanh":
+            return v["alpha_a"] if which == "a" else v["alpha_b"]
         if family == "lugre":
             zsat = 1.0 / (v["sigma_0"] * v["a_0"])
             return v["sigma_a"] * zsat if which == "a" else v["sigma_0"] * zsat

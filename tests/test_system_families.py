@@ -1,5 +1,5 @@
-"""The Spencer family: its simulation against an independent integration of the published
-equations, and discovery on synthetic driven data (issue 15 acceptance)."""
+"""The state-space families (Spencer, tanh): simulation against an independent integration
+of the published equations, and discovery on synthetic driven data (issue 15 acceptance)."""
 
 from __future__ import annotations
 
@@ -121,3 +121,30 @@ def test_an_energy_generating_spencer_is_not_admissible(spencer_fit):
     system, values = fit.model
     bad = dict(values, c0_a=-0.5, c0_b=0.0)  # a negative dashpot beside the hysteresis
     assert check_admissible((system, bad), d.envelope_).ok is False
+
+
+TANH_TRUTH = {
+    "c_a": 0.5,
+    "c_b": 0.8,
+    "alpha_a": 0.3,
+    "alpha_b": 1.5,
+    "beta": 3.0,
+    "delta": 0.8,
+    "k": 0.4,
+}
+
+
+def test_tanh_is_selected_with_its_parameters_on_its_own_data():
+    m = Model("tanh", TANH_TRUTH)
+    kw = dict(currents=(0.0, 0.5, 1.0), duration=2.0, fs=250, drives=DRIVES, seed=2)
+    clean = generate(m, "driven", noise=0.0, **kw)
+    noise = 0.01 * float(np.median([np.max(np.abs(r.torque)) for r in clean.runs]))
+    data = generate(m, "driven", noise=noise, **kw)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", HystdiscWarning)
+        d = Discovery(families=["bingham", "bouc-wen-std", "tanh"]).fit(data)
+    assert d.family_ == "tanh"
+    fit = d.family_fits_["tanh"]
+    assert fit.heldout_rms < 1.1 * noise  # each sine condition predicted without it
+    for k, v in TANH_TRUTH.items():
+        assert abs(fit.params[k] - v) < 0.02 * abs(v), (k, fit.params[k], v)
