@@ -571,7 +571,7 @@ class Discovery(BaseEstimator):
         self.final_admissibility_ = (
             self.admissibility_[self.family_]
             if self.final_fit_ is selected  # the loop accepted nothing: already checked
-            else check_admissible(self.final_fit_.term_model, self.envelope_)
+            else check_admissible(self.final_fit_.term_part, self.envelope_)
         )
         if not self.final_admissibility_.ok:
             warnings.warn(

@@ -47,6 +47,7 @@ EFFECTS: dict[str, str] = {
     "quadratic_damping": "hystdisc.models.effects:QUADRATIC_DAMPING",
     "cubic_stiffness": "hystdisc.models.effects:CUBIC_STIFFNESS",
     "offset": "hystdisc.models.effects:OFFSET",
+    "series_compliance": "hystdisc.models.effects:SERIES_COMPLIANCE",
 }
 
 #: Experiment name -> ``module:attribute`` of its experiment object.

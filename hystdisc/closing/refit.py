@@ -69,7 +69,7 @@ def candidate_effects(fit: OEFit, data: FitData) -> tuple[list[str], list[dict]]
         ``{"name", "reason"}`` for each effect left out.
     """
     par = fit.par
-    tm = fit.term_model
+    tm = fit.term_part
     fam = par.family
     have = set(fam.torque_terms) | {t for e in par.effects for t in EFFECTS[e].terms}
     # terms the family can carry but fixed at zero (one current) do not count as present
@@ -81,7 +81,17 @@ def candidate_effects(fit: OEFit, data: FitData) -> tuple[list[str], list[dict]]
         reason = None
         if name in par.effects:
             continue
-        if all(t in have for t in eff.terms):
+        if eff.structural:
+            if eff.experiments and data.experiment not in eff.experiments:
+                reason = (
+                    f"built for {', '.join(eff.experiments)} experiments only (its {data.experiment} "
+                    "form is not built)"
+                )
+            elif any(EFFECTS[e].structural for e in par.effects):
+                reason = "the model already has a structural effect"
+            elif not has_spring(fit):
+                reason = "no rig spring (k_s is not significantly above 0): no beam to start from"
+        elif all(t in have for t in eff.terms):
             reason = f"{fam.name} already has {', '.join(eff.terms)}"
         elif any(t in Z_TORQUE_TERMS for t in eff.terms) and not tm.has_state:
             reason = f"{fam.name} has no hysteretic state z"
@@ -143,6 +153,8 @@ def stage1_start(
         return None
     for e in effects:
         p.update(EFFECTS[e].from_torque(coefs, p["k_s"]))
+        if EFFECTS[e].structural:  # its states are not in stage 1: keep the fitted values
+            p.update({q.name: fit.params[q.name] for q in EFFECTS[e].params if q.name in fit.params})
     for k, v in fit.par.fixed.items():
         p[k] = v
     if not all(np.isfinite(v) for v in p.values()):
@@ -182,6 +194,8 @@ def screen_starts(
     """
     N = sum(int(m.sum()) for m in data.mask)
     for sc in scores:
+        if EFFECTS[sc.name].structural:
+            continue  # its own starts (closing.structural)
         effects = (*fit.par.effects, sc.name)
         st = stage1_start(eq, fit, effects, data, s0=s0)
         if st is None:

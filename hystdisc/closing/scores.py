@@ -69,6 +69,9 @@ class EffectScore:
         BIC change of that start against the current fit.
     start : dict or None
         The stage-1 parameters themselves (a start for the refit).
+    starts : list of dict or None
+        A structural effect's screened starts, best first
+        (:func:`~hystdisc.closing.structural.score_structural`).
     """
 
     name: str
@@ -84,6 +87,7 @@ class EffectScore:
     start_rms: float | None = None
     start_dbic: float | None = None
     start: dict[str, float] | None = None
+    starts: list[dict[str, float]] | None = None
 
     def to_dict(self) -> dict:
         """Plain-dict form for ``results.json``."""
@@ -100,6 +104,7 @@ class EffectScore:
             "predicted_rms": self.predicted_rms,
             "predicted_dbic": self.predicted_dbic,
             "estimate": dict(self.estimate),
+            **({"starts_screened": len(self.starts)} if self.starts is not None else {}),
         }
 
 
@@ -284,7 +289,7 @@ def score_effects(
     if eq is not None:
         try:
             with np.errstate(all="ignore"):
-                eq_ev = _equation_evidence(eq, fit.term_model, candidates)
+                eq_ev = _equation_evidence(eq, fit.term_part, candidates)
         except Exception:  # noqa: BLE001 - the equation-error view is supplementary
             eq_ev = {}
     scores = []
@@ -331,7 +336,9 @@ def score_effects(
 
 
 def wald_chi2(fit: OEFit, effect: str) -> float:
-    """Smallest squared z-score (value / standard error) of an effect's parameters in ``fit``.
+    """Smallest squared z-score (value / standard error) of an effect's parameters in ``fit``
+    (of its :attr:`~hystdisc.models.Effect.significance` parameters when it names them: the
+    compliance ``1/k_w`` of ``series_compliance`` has the z-score of ``k_w``).
 
     Parameters
     ----------
@@ -347,7 +354,10 @@ def wald_chi2(fit: OEFit, effect: str) -> float:
         degree of freedom when the effect is absent).
     """
     out = np.inf
-    for p in EFFECTS[effect].params:
+    eff = EFFECTS[effect]
+    for p in eff.params:
+        if eff.significance and p.name not in eff.significance:
+            continue
         v = fit.params.get(p.name, 0.0)
         se = fit.stderr.get(p.name, np.inf)
         z2 = (v / se) ** 2 if se > 0 else (np.inf if v != 0 else 0.0)

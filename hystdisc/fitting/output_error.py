@@ -110,6 +110,14 @@ class OEFit:
         """The fitted model in term form."""
         return self.par.terms(self.x)
 
+    @property
+    def term_part(self) -> TermModel:
+        """The term form of the fitted model without the internal states of a structural
+        effect (the damper, rig spring and term effects; the whole model when it has no
+        structural effect). Raises for a state-space model that has no term part."""
+        rigid = getattr(self.par, "rigid_terms", None)
+        return rigid(self.x) if rigid is not None else self.par.terms(self.x)
+
 
 class OutputErrorFitter:
     """Fit a :class:`Parametrization` to :class:`FitData` by output error.

@@ -159,7 +159,7 @@ def build_results(disc: Any, dataset: Any) -> Results:
         "declared": disc.declared_,
         "equal_fits": disc.equal_fits_,
         "families": fams,
-        "model": term_model_to_dict((loop.fit if loop is not None else sel).term_model),
+        "model": term_model_to_dict((loop.fit if loop is not None else sel).term_part),
         "effects": loop.accepted if loop is not None else [],
         "unexplained": loop.unexplained if loop is not None else False,
         # the residual over the samples the fit uses (driven start-up excluded)
