@@ -183,13 +183,18 @@ def _refit_queue(scores: list[EffectScore]) -> list[EffectScore]:
         ),
         key=lambda s: -(s.evidence_eq or 0.0),
     )
-    structural = [s for s in sig_oe if s.starts is not None]
+    structural = [
+        s
+        for s in scores
+        if s.starts is not None and (s.predicted_dbic < -EFFECT_BIC_MARGIN or s.signature)
+    ]
     sig_oe = [s for s in sig_oe if s.starts is None]
     queue = sig_oe[:2]
     if sig_eq and sig_eq[0] not in queue:
         queue.append(sig_eq[0])
-    # a structural effect's evidence is an achieved fit, not a local prediction: it is
-    # refitted whenever it predicts a BIC drop
+    # a structural effect's evidence is an achieved fit at a start, not a local
+    # prediction: it is refitted whenever a start predicts a BIC drop or the residual
+    # shows its signature
     return queue[:MAX_REFITS_PER_ROUND] + structural
 
 

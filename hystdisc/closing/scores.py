@@ -72,6 +72,9 @@ class EffectScore:
     starts : list of dict or None
         A structural effect's screened starts, best first
         (:func:`~hystdisc.closing.structural.score_structural`).
+    signature : str or None
+        A structural effect's signature in the residual, in words (a resonance above the
+        beam's frequency), when there is one.
     """
 
     name: str
@@ -88,6 +91,7 @@ class EffectScore:
     start_dbic: float | None = None
     start: dict[str, float] | None = None
     starts: list[dict[str, float]] | None = None
+    signature: str | None = None
 
     def to_dict(self) -> dict:
         """Plain-dict form for ``results.json``."""
@@ -105,6 +109,7 @@ class EffectScore:
             "predicted_dbic": self.predicted_dbic,
             "estimate": dict(self.estimate),
             **({"starts_screened": len(self.starts)} if self.starts is not None else {}),
+            **({"signature": self.signature} if self.signature else {}),
         }
 
 

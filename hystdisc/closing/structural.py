@@ -30,7 +30,12 @@ import itertools
 
 import numpy as np
 
-from hystdisc.closing.diagnostics import residual_spectrum, spectral_peak
+from hystdisc.closing.diagnostics import (
+    WHITE_P,
+    ljung_box_pooled,
+    residual_spectrum,
+    spectral_peak,
+)
 from hystdisc.closing.refit import EFFECT_BIC_MARGIN
 from hystdisc.closing.residual import natural_frequency
 from hystdisc.closing.scores import EffectScore
@@ -56,13 +61,18 @@ def _wheel(f_hz: float, m: float, zeta: float) -> dict[str, float]:
 
 
 def residual_peak(fit: OEFit, data: FitData) -> float | None:
-    """Frequency (Hz) of the largest peak of the residual's run-averaged spectrum."""
+    """Frequency (Hz) of the residual's resonance above the beam's own frequency: the
+    largest peak of its run-averaged spectrum when the residual is not white, the peak
+    is a resonance (quality factor 2 or more) and it lies between :data:`PEAK_ABOVE`
+    and twice the top of :data:`FREQUENCY_RATIOS` times the beam's frequency; else None."""
+    f_beam = natural_frequency(fit, data.experiment)
     res = [r for r in masked(fit.residuals, data.mask) if len(r) > 10]
-    if not res:
+    if not res or f_beam is None or ljung_box_pooled(res) >= WHITE_P:
         return None
     f, psd, resolution = residual_spectrum(res, sampling_rate(data.t))
-    fk, _ = spectral_peak(f, psd, f_min=resolution)
-    return float(fk) if np.isfinite(fk) else None
+    fk, q = spectral_peak(f, psd, f_min=resolution)
+    inside = PEAK_ABOVE * f_beam < fk < 2 * max(FREQUENCY_RATIOS) * f_beam
+    return float(fk) if np.isfinite(fk) and inside and q >= 2.0 else None
 
 
 def structural_starts(fit: OEFit, data: FitData, name: str) -> list[dict[str, float]]:
@@ -87,7 +97,7 @@ def structural_starts(fit: OEFit, data: FitData, name: str) -> list[dict[str, fl
         return []
     freqs = [r * f_beam for r in FREQUENCY_RATIOS]
     peak = residual_peak(fit, data)
-    if peak is not None and peak > PEAK_ABOVE * f_beam:
+    if peak is not None:
         freqs.append(peak)
     out = []
     for f, m, zeta in itertools.product(freqs, INERTIA_RATIOS, DAMPING_RATIOS):
@@ -141,6 +151,7 @@ def score_structural(data: FitData, fit: OEFit, name: str) -> EffectScore | None
         return None
     ranked.sort(key=lambda t: t[0])
     rss, per, best = ranked[0]
+    peak = residual_peak(fit, data)
     rows = np.cumsum([0] + [int(m.sum()) for m in data.mask])
     base_per = [
         float(np.sum(r[m] ** 2)) for r, m in zip(fit.residuals, data.mask, strict=True)
@@ -163,7 +174,28 @@ def score_structural(data: FitData, fit: OEFit, name: str) -> EffectScore | None
         start_dbic=bic_change(rss, fit.rss, N, q),
         start=best,
         starts=[st for _, _, st in ranked],
+        signature=None if peak is None else f"a residual resonance near {peak:.3g} Hz, above the beam's",
     )
+
+
+def distinct_starts(starts: list[dict], n: int, rel: float = 0.2) -> list[dict]:
+    """The first ``n`` of ``starts`` whose wheel frequencies ``sqrt(k_w / m_w)`` differ by
+    more than ``rel`` from each other (the ranking's best of each frequency).
+
+    Examples
+    --------
+    >>> s = [{"k_w": 100.0, "m_w": 1.0}, {"k_w": 110.0, "m_w": 1.0}, {"k_w": 400.0, "m_w": 1.0}]
+    >>> [d["k_w"] for d in distinct_starts(s, 2)]
+    [100.0, 400.0]
+    """
+    out: list[dict] = []
+    for st in starts:
+        w = np.sqrt(st["k_w"] / st["m_w"])
+        if all(abs(w / np.sqrt(o["k_w"] / o["m_w"]) - 1.0) > rel for o in out):
+            out.append(st)
+        if len(out) == n:
+            break
+    return out
 
 
 def refit_structural(
@@ -204,7 +236,7 @@ def refit_structural(
     eff = EFFECTS[name]
     key = (eff.significance or tuple(p.name for p in eff.params))[0]
     fits, rows = [], []
-    for st in starts[:n_starts]:
+    for st in distinct_starts(starts, n_starts):
         par = fit.par.like(st, (*fit.par.effects, name))
         with np.errstate(all="ignore"):
             new = OutputErrorFitter(data, par, max_nfev=max_nfev).fit(heldout=False)

@@ -30,6 +30,10 @@ FIT_MAX_SUB = 8
 #: relative step 1e-6 need the integration far below that).
 SYSTEM_RTOL = 1e-10
 SYSTEM_ATOL = 1e-13
+#: Steps of the error-controlled integrator per measured sample interval while fitting: a
+#: candidate whose dynamics need more (a series mass driven towards zero, a stiff wheel)
+#: counts as diverged, and the optimizer backs away.
+SYSTEM_MAX_STEPS = 50
 #: What a diverged prediction is replaced by.
 DIVERGED = 1e6
 
@@ -162,6 +166,7 @@ def simulate_systems(
         Receive each entry's divergence flag and integration work (0: not counted).
     """
     out = []
+    steps = data.run_steps()
     for (model, values), r, nu in zip(systems, runs, nuis, strict=True):
         names = data.exp.initial_state(has_z="z" in model.states)
         x0 = _system_start(model, names, nu)
@@ -175,6 +180,7 @@ def simulate_systems(
                 inputs=_system_inputs(data, r, model),
                 rtol=SYSTEM_RTOL,
                 atol=SYSTEM_ATOL,
+                max_steps_per_sample=SYSTEM_MAX_STEPS * steps[r],
             ).y
             bad = not np.all(np.isfinite(y))
         except HystdiscError:
