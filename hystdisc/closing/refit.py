@@ -154,7 +154,9 @@ def stage1_start(
     for e in effects:
         p.update(EFFECTS[e].from_torque(coefs, p["k_s"]))
         if EFFECTS[e].structural:  # its states are not in stage 1: keep the fitted values
-            p.update({q.name: fit.params[q.name] for q in EFFECTS[e].params if q.name in fit.params})
+            p.update(
+                {q.name: fit.params[q.name] for q in EFFECTS[e].params if q.name in fit.params}
+            )
     for k, v in fit.par.fixed.items():
         p[k] = v
     if not all(np.isfinite(v) for v in p.values()):

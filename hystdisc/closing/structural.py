@@ -117,7 +117,9 @@ def _rss_at(data: FitData, fit: OEFit, name: str, start: dict) -> tuple[float, n
     if not np.all(np.isfinite(r)):
         return float("inf"), np.full(data.n_runs, np.inf)
     rows = fitter.row_offsets
-    per = np.array([float(r[rows[k] : rows[k + 1]] @ r[rows[k] : rows[k + 1]]) for k in range(data.n_runs)])
+    per = np.array(
+        [float(r[rows[k] : rows[k + 1]] @ r[rows[k] : rows[k + 1]]) for k in range(data.n_runs)]
+    )
     return float(r @ r), per
 
 
@@ -153,9 +155,7 @@ def score_structural(data: FitData, fit: OEFit, name: str) -> EffectScore | None
     rss, per, best = ranked[0]
     peak = residual_peak(fit, data)
     rows = np.cumsum([0] + [int(m.sum()) for m in data.mask])
-    base_per = [
-        float(np.sum(r[m] ** 2)) for r, m in zip(fit.residuals, data.mask, strict=True)
-    ]
+    base_per = [float(np.sum(r[m] ** 2)) for r, m in zip(fit.residuals, data.mask, strict=True)]
     N = int(rows[-1])
     gain = max(fit.rss - rss, 0.0)
     eff = EFFECTS[name]
@@ -165,7 +165,9 @@ def score_structural(data: FitData, fit: OEFit, name: str) -> EffectScore | None
         name=name,
         terms=eff.terms,
         evidence=float(gain / fit.rss) if fit.rss > 0 else 0.0,
-        per_run=[float(max(b - a, 0.0) / b) if b > 0 else 0.0 for a, b in zip(per, base_per, strict=True)],
+        per_run=[
+            float(max(b - a, 0.0) / b) if b > 0 else 0.0 for a, b in zip(per, base_per, strict=True)
+        ],
         lm=float(gain / s2) if s2 > 0 else 0.0,
         predicted_rms=float(np.sqrt(min(rss, fit.rss) / N)),
         predicted_dbic=bic_change(min(rss, fit.rss), fit.rss, N, q),
@@ -174,7 +176,9 @@ def score_structural(data: FitData, fit: OEFit, name: str) -> EffectScore | None
         start_dbic=bic_change(rss, fit.rss, N, q),
         start=best,
         starts=[st for _, _, st in ranked],
-        signature=None if peak is None else f"a residual resonance near {peak:.3g} Hz, above the beam's",
+        signature=None
+        if peak is None
+        else f"a residual resonance near {peak:.3g} Hz, above the beam's",
     )
 
 
@@ -253,9 +257,13 @@ def refit_structural(
     best = min(ok, key=lambda f: f.bic) if ok else fits[0]
     if heldout and ok:
         best = OutputErrorFitter(data, best.par, max_nfev=max_nfev).heldout_at(best)
-    near = [r[key] for r in rows if np.isfinite(r["bic"]) and r["bic"] < best.bic + EFFECT_BIC_MARGIN]
+    near = [
+        r[key] for r in rows if np.isfinite(r["bic"]) and r["bic"] < best.bic + EFFECT_BIC_MARGIN
+    ]
     best.extra["starts"] = rows
     best.extra["starts_spread"] = (
-        float((max(near) - min(near)) / abs(best.params[key])) if near and best.params.get(key) else None
+        float((max(near) - min(near)) / abs(best.params[key]))
+        if near and best.params.get(key)
+        else None
     )
     return best
