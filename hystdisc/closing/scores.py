@@ -263,7 +263,8 @@ def score_effects(
     fit : OEFit
         Fit of a :class:`~hystdisc.fitting.output_error.FamilyParametrization`, at its optimum.
     candidates : sequence of str
-        Effect names (see :func:`candidate_effects`).
+        Effect names (see :func:`candidate_effects`); structural effects among them are
+        left out (their diagnosis is :func:`~hystdisc.closing.structural.score_structural`).
     eq : EqData, optional
         Equation-error data (``Discovery.eq_data_``); when given, ``evidence_eq`` is computed.
 
@@ -272,7 +273,7 @@ def score_effects(
     list of EffectScore
         Sorted by decreasing evidence.
     """
-    candidates = list(candidates)
+    candidates = [c for c in candidates if not EFFECTS[c].structural]
     if not candidates:
         return []
     par, x = with_effects(fit, candidates)
