@@ -20,7 +20,7 @@ Examples
 >>> registry.get_effect("nope")
 Traceback (most recent call last):
 ...
-hystdisc.errors.HystdiscError: unknown effect 'nope'; fix: use one of current_viscous, current_saturation, coulomb, quadratic_damping, cubic_stiffness, offset
+hystdisc.errors.HystdiscError: unknown effect 'nope'; fix: use one of current_viscous, current_saturation, coulomb, ..., offset, series_compliance
 """
 
 from __future__ import annotations
