@@ -667,7 +667,10 @@ class Discovery(BaseEstimator):
         self.final_admissibility_ = (
             self.admissibility_[self.family_]
             if self.final_fit_ is selected  # the loop accepted nothing: already checked
-            else check_admissible(self.final_fit_.model, self.envelope_)
+            else check_admissible(
+                self.final_fit_.model if self.final_fit_.is_system else self.final_fit_.term_part,
+                self.envelope_,
+            )
         )
         if not self.final_admissibility_.ok:
             warnings.warn(

@@ -22,7 +22,7 @@ Examples
 >>> registry.get_effect("nope")
 Traceback (most recent call last):
 ...
-hystdisc.errors.HystdiscError: unknown effect 'nope'; fix: use one of current_viscous, current_saturation, coulomb, quadratic_damping, cubic_stiffness, offset, channel_delay
+hystdisc.errors.HystdiscError: unknown effect 'nope'; fix: use one of current_viscous, current_saturation, coulomb, ...
 """
 
 from __future__ import annotations
@@ -56,6 +56,7 @@ EFFECTS: dict[str, str] = {
     "cubic_stiffness": "hystdisc.models.effects:CUBIC_STIFFNESS",
     "offset": "hystdisc.models.effects:OFFSET",
     "channel_delay": "hystdisc.models.effects:CHANNEL_DELAY",
+    "series_compliance": "hystdisc.models.effects:SERIES_COMPLIANCE",
 }
 
 #: Experiment name -> ``module:attribute`` of its experiment object.

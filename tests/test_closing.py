@@ -112,7 +112,9 @@ def test_seed_case_dahl_lacks_current_viscous():
     assert first[0]["name"] == "current_viscous"
     assert first[0]["evidence"] > 0.5
     assert first[0]["predicted_dbic"] < -EFFECT_BIC_MARGIN
-    assert max(first[1:], key=lambda c: c["evidence_eq"])["evidence_eq"] < first[0]["evidence_eq"]
+    # (a structural effect has no torque term: no equation-error view)
+    eq_view = [c for c in first[1:] if c["evidence_eq"] is not None]
+    assert max(eq_view, key=lambda c: c["evidence_eq"])["evidence_eq"] < first[0]["evidence_eq"]
     # per run: the runs' parts of the predicted reduction add up to the pooled evidence
     fit = disc.family_fits_["dahl"]
     rss = [float(r[m] @ r[m]) for r, m in zip(fit.residuals, disc.fit_data_.mask, strict=True)]
@@ -193,13 +195,14 @@ def _fake_fit(family, experiment="release", effects=(), ks=158.0, ks_lo=150.0):
     return SimpleNamespace(
         par=par,
         term_model=par.terms(par.x0),
+        term_part=par.rigid_terms(par.x0),
         params=par.params(par.x0),
         ci95={"k_s": (ks_lo, 2 * ks - ks_lo)},
     )
 
 
-def _fake_data(currents):
-    return SimpleNamespace(currents=np.asarray(currents, dtype=float))
+def _fake_data(currents, experiment="release"):
+    return SimpleNamespace(currents=np.asarray(currents, dtype=float), experiment=experiment)
 
 
 def test_candidates_follow_the_family_and_the_data():
@@ -208,7 +211,7 @@ def test_candidates_follow_the_family_and_the_data():
     assert cand == list(EFFECTS)  # Dahl lacks every catalogued effect
     assert skipped == []
     cand, skipped = candidate_effects(_fake_fit("bingham"), five)
-    assert cand == ["quadratic_damping", "cubic_stiffness", "offset"]
+    assert cand == ["quadratic_damping", "cubic_stiffness", "offset", "series_compliance"]
     reasons = {s["name"]: s["reason"] for s in skipped}
     assert "already has i*theta_dot" in reasons["current_viscous"]
     assert "already has sign(theta_dot)" in reasons["coulomb"]
@@ -223,10 +226,13 @@ def test_candidates_follow_the_family_and_the_data():
     assert "current_viscous" not in cand
     # a characterization machine without a spring: no offset, no cubic stiffening
     cand, skipped = candidate_effects(
-        _fake_fit("dahl", "driven", ks=0.01, ks_lo=-0.05), _fake_data([0, 0.5, 1.0])
+        _fake_fit("dahl", "driven", ks=0.01, ks_lo=-0.05), _fake_data([0, 0.5, 1.0], "driven")
     )
     assert "offset" not in cand and "cubic_stiffness" not in cand
     assert any("no rig spring" in s["reason"] for s in skipped)
+    # the compliant wheel is built for release experiments only
+    reasons = {s["name"]: s["reason"] for s in skipped}
+    assert reasons["series_compliance"].startswith("built for release experiments only")
     # an accepted effect is not a candidate again
     cand, _ = candidate_effects(_fake_fit("dahl", effects=("coulomb",)), five)
     assert "coulomb" not in cand
@@ -238,7 +244,8 @@ def test_score_test_on_the_current_optimum():
     fit = disc.family_fits_["dahl"]
     fd: FitData = disc.fit_data_
     scores = score_effects(fd, fit, list(EFFECTS))
-    assert {s.name for s in scores} == set(EFFECTS)
+    # structural effects have their own diagnosis (closing.structural)
+    assert {s.name for s in scores} == {n for n, e in EFFECTS.items() if not e.structural}
     assert all(s.predicted_dbic > -EFFECT_BIC_MARGIN for s in scores)
     assert all(0.0 <= s.evidence < 0.01 for s in scores)
     assert [s.evidence for s in scores] == sorted((s.evidence for s in scores), reverse=True)

@@ -4,6 +4,7 @@ Examples::
 
     hystdisc simulate --model bouc-wen --set k_s=158 --set c_1=0.8 --currents 0,0.5,1 -o bw.csv
     hystdisc simulate --model dahl --effect current_viscous:c_i=0.6 -o dahl_cv.csv
+    hystdisc simulate --model dahl --effect series_compliance:k_w=900,c_w=3,m_w=0.3 -o w.csv
     hystdisc simulate --model bouc-wen --set k_s=0 --experiment driven --drive 0.3@1 -o d.csv
     hystdisc simulate --scenario data_synth/dahl.toml --seed 7 -o dahl_seed7.csv
     hystdisc simulate --regenerate data_synth --force
@@ -45,7 +46,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_model_options(
         p,
         "a model or rig parameter, e.g. k_s=158 (repeatable; or comma separated)",
-        "add a catalogued effect, e.g. coulomb or coulomb:f_c=0.5 (repeatable)",
+        "add a catalogued effect, e.g. coulomb or coulomb:f_c=0.5 (repeatable); the beam "
+        "on a compliant wheel (release): series_compliance:k_w=900,c_w=3,m_w=0.3 (per unit "
+        "beam inertia)",
     )
     p.add_argument("--currents", metavar="LIST", help="coil currents in A, e.g. 0,0.25,0.5,0.75,1")
     release, *others = registry.experiment_names()

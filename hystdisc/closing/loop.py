@@ -76,6 +76,7 @@ from hystdisc.closing.residual import (
     natural_frequency,
 )
 from hystdisc.closing.scores import EffectScore, score_effects, wald_chi2
+from hystdisc.closing.structural import refit_structural, score_structural
 from hystdisc.data.envelope import Envelope
 from hystdisc.errors import HystdiscError, HystdiscWarning
 from hystdisc.fitting import FamilyParametrization, FitData, OEFit, OutputErrorFitter
@@ -183,10 +184,19 @@ def _refit_queue(scores: list[EffectScore]) -> list[EffectScore]:
         ),
         key=lambda s: -(s.evidence_eq or 0.0),
     )
+    structural = [
+        s
+        for s in scores
+        if s.starts is not None and (s.predicted_dbic < -EFFECT_BIC_MARGIN or s.signature)
+    ]
+    sig_oe = [s for s in sig_oe if s.starts is None]
     queue = sig_oe[:2]
     if sig_eq and sig_eq[0] not in queue:
         queue.append(sig_eq[0])
-    return queue[:MAX_REFITS_PER_ROUND]
+    # a structural effect's evidence is an achieved fit at a start, not a local
+    # prediction: it is refitted whenever a start predicts a BIC drop or the residual
+    # shows its signature
+    return queue[:MAX_REFITS_PER_ROUND] + structural
 
 
 def _start_pick(scores: list[EffectScore]) -> EffectScore | None:
@@ -249,16 +259,21 @@ class _Round:
         cur = self.current
         self.say(f"closing the loop: refit with {s.name} (evidence {s.evidence:.3g})")
         with np.errstate(all="ignore"):
-            new = refit_with(
-                self.data,
-                cur,
-                s.name,
-                s.estimate,
-                self.max_nfev,
-                self.heldout,
-                start,
-                self.good_rms,
-            )
+            if s.starts is not None:  # a structural effect, from its own starts
+                new = refit_structural(
+                    self.data, cur, s.name, s.starts, self.max_nfev, self.heldout
+                )
+            else:
+                new = refit_with(
+                    self.data,
+                    cur,
+                    s.name,
+                    s.estimate,
+                    self.max_nfev,
+                    self.heldout,
+                    start,
+                    self.good_rms,
+                )
         ok = fit_ok(new, cur)
         wald = wald_chi2(new, s.name) if ok else 0.0
         step = {
@@ -283,7 +298,7 @@ class _Round:
         # acceptance by prediction: the held-out error (pooled over folds) must fall too
         hb, ha = cur.heldout_rms, step["heldout_rms_after"]
         step["_predicts"] = hb is None or (ha is not None and ha < hb)
-        adm = check_admissible(new.term_model, self.envelope) if ok else None
+        adm = check_admissible(new.term_part, self.envelope) if ok else None
         step["admissible"] = bool(adm is None or adm.ok)
         step["_violation"] = adm.violations[0] if adm is not None and not adm.ok else None
         # the one-step estimate at the current optimum says which sign the data want; the
@@ -295,6 +310,9 @@ class _Round:
         gain = cur.rss - new.rss if ok else 0.0
         share = gain / excess if excess > 0 else 1.0
         step["excess_share"] = float(share)
+        if "starts" in new.extra:  # a multi-start refit: how the starts ended
+            step["starts"] = new.extra["starts"]
+            step["starts_spread"] = new.extra.get("starts_spread")
         step["_improves"] = step["_improves"] and share >= MIN_EXCESS_SHARE
         old = self.results.get(s.name)
         if old is None or (ok and (old[1]["bic_after"] is None or new.bic < old[0].bic)):
@@ -434,7 +452,15 @@ def augment(
         pool = [c for c in candidates if c not in out.effects and c not in rejected]
         if not pool:
             break
-        scores = score_effects(data, current, pool, eq=eq)
+        structural = [c for c in pool if EFFECTS[c].structural]
+        scores = score_effects(data, current, [c for c in pool if c not in structural], eq=eq)
+        if current.rms > good_rms:  # a structure can only explain a misfit
+            for c in structural:
+                say(f"closing the loop: starts of {c}")
+                sc = score_structural(data, current, c)
+                if sc is not None:
+                    scores.append(sc)
+            scores.sort(key=lambda s: -s.evidence)
         diag = {"round": round_no, "candidates": [s.to_dict() for s in scores]}
         out.diagnosis.append(diag)
         rnd = _Round(data, current, round_no, max_nfev, heldout, noise_std, say, envelope)

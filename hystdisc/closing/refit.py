@@ -69,7 +69,7 @@ def candidate_effects(fit: OEFit, data: FitData) -> tuple[list[str], list[dict]]
         ``{"name", "reason"}`` for each effect left out.
     """
     par = fit.par
-    tm = fit.term_model
+    tm = fit.term_part
     fam = par.family
     have = set(fam.torque_terms) | {t for e in par.effects for t in EFFECTS[e].terms}
     # terms the family can carry but fixed at zero (one current) do not count as present
@@ -82,7 +82,17 @@ def candidate_effects(fit: OEFit, data: FitData) -> tuple[list[str], list[dict]]
         reason = None
         if name in par.effects:
             continue
-        if not eff.terms:  # a measurement effect: it needs two recorded channels
+        if eff.structural:
+            if eff.experiments and data.experiment not in eff.experiments:
+                reason = (
+                    f"built for {', '.join(eff.experiments)} experiments only (its {data.experiment} "
+                    "form is not built)"
+                )
+            elif any(EFFECTS[e].structural for e in par.effects):
+                reason = "the model already has a structural effect"
+            elif not has_spring(fit):
+                reason = "no rig spring (k_s is not significantly above 0): no beam to start from"
+        elif not eff.terms:  # a measurement effect: it needs two recorded channels
             if not (exp.motion_imposed or exp.has_input):
                 reason = f"a {exp.name} experiment records one channel"
         elif all(t in have for t in eff.terms):
@@ -147,6 +157,10 @@ def stage1_start(
         return None
     for e in effects:
         p.update(EFFECTS[e].from_torque(coefs, p["k_s"]))
+        if EFFECTS[e].structural:  # its states are not in stage 1: keep the fitted values
+            p.update(
+                {q.name: fit.params[q.name] for q in EFFECTS[e].params if q.name in fit.params}
+            )
     for k, v in fit.par.fixed.items():
         p[k] = v
     if not all(np.isfinite(v) for v in p.values()):
@@ -186,6 +200,8 @@ def screen_starts(
     """
     N = sum(int(m.sum()) for m in data.mask)
     for sc in scores:
+        if EFFECTS[sc.name].structural:
+            continue  # its own starts (closing.structural)
         effects = (*fit.par.effects, sc.name)
         st = stage1_start(eq, fit, effects, data, s0=s0)
         if st is None:

@@ -69,6 +69,12 @@ class EffectScore:
         BIC change of that start against the current fit.
     start : dict or None
         The stage-1 parameters themselves (a start for the refit).
+    starts : list of dict or None
+        A structural effect's screened starts, best first
+        (:func:`~hystdisc.closing.structural.score_structural`).
+    signature : str or None
+        A structural effect's signature in the residual, in words (a resonance above the
+        beam's frequency), when there is one.
     """
 
     name: str
@@ -84,6 +90,8 @@ class EffectScore:
     start_rms: float | None = None
     start_dbic: float | None = None
     start: dict[str, float] | None = None
+    starts: list[dict[str, float]] | None = None
+    signature: str | None = None
 
     def to_dict(self) -> dict:
         """Plain-dict form for ``results.json``."""
@@ -100,6 +108,8 @@ class EffectScore:
             "predicted_rms": self.predicted_rms,
             "predicted_dbic": self.predicted_dbic,
             "estimate": dict(self.estimate),
+            **({"starts_screened": len(self.starts)} if self.starts is not None else {}),
+            **({"signature": self.signature} if self.signature else {}),
         }
 
 
@@ -256,7 +266,8 @@ def score_effects(
     fit : OEFit
         Fit of a :class:`~hystdisc.fitting.output_error.FamilyParametrization`, at its optimum.
     candidates : sequence of str
-        Effect names (see :func:`candidate_effects`).
+        Effect names (see :func:`candidate_effects`); structural effects among them are
+        left out (their diagnosis is :func:`~hystdisc.closing.structural.score_structural`).
     eq : EqData, optional
         Equation-error data (``Discovery.eq_data_``); when given, ``evidence_eq`` is computed.
 
@@ -265,7 +276,7 @@ def score_effects(
     list of EffectScore
         Sorted by decreasing evidence.
     """
-    candidates = list(candidates)
+    candidates = [c for c in candidates if not EFFECTS[c].structural]
     if not candidates:
         return []
     par, x = with_effects(fit, candidates)
@@ -287,7 +298,7 @@ def score_effects(
     if eq is not None:
         try:
             with np.errstate(all="ignore"):
-                eq_ev = _equation_evidence(eq, fit.term_model, candidates)
+                eq_ev = _equation_evidence(eq, fit.term_part, candidates)
         except Exception:  # noqa: BLE001 - the equation-error view is supplementary
             eq_ev = {}
     scores = []
@@ -334,7 +345,9 @@ def score_effects(
 
 
 def wald_chi2(fit: OEFit, effect: str) -> float:
-    """Smallest squared z-score (value / standard error) of an effect's parameters in ``fit``.
+    """Smallest squared z-score (value / standard error) of an effect's parameters in ``fit``
+    (of its :attr:`~hystdisc.models.Effect.significance` parameters when it names them: the
+    compliance ``1/k_w`` of ``series_compliance`` has the z-score of ``k_w``).
 
     Parameters
     ----------
@@ -350,7 +363,10 @@ def wald_chi2(fit: OEFit, effect: str) -> float:
         degree of freedom when the effect is absent).
     """
     out = np.inf
-    for p in EFFECTS[effect].params:
+    eff = EFFECTS[effect]
+    for p in eff.params:
+        if eff.significance and p.name not in eff.significance:
+            continue
         v = fit.params.get(p.name, 0.0)
         se = fit.stderr.get(p.name, np.inf)
         z2 = (v / se) ** 2 if se > 0 else (np.inf if v != 0 else 0.0)

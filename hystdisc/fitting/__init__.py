@@ -2,7 +2,8 @@
 
 :class:`FitData` holds the runs as the fit sees them; a :class:`Parametrization`
 (:class:`FamilyParametrization`, :class:`TermParametrization`, and
-:class:`SystemParametrization` for any state-space model) maps free parameters to a model
+:class:`SystemParametrization` for any state-space model, :class:`StructuralParametrization`
+for a family with a structural effect) maps free parameters to a model
 and simulates it (:mod:`hystdisc.fitting.simulate`); :class:`OutputErrorFitter` fits it with :func:`levenberg_marquardt` and returns
 an :class:`OEFit` (parameters, 95 % intervals, identifiability, BIC, held-out error);
 :func:`predict_dataset` simulates a fitted model on new runs;
@@ -18,8 +19,10 @@ from hystdisc.fitting.parametrization import (
     FamilyParametrization,
     FamilySystemParametrization,
     Parametrization,
+    StructuralParametrization,
     SystemParametrization,
     TermParametrization,
+    family_parametrization,
 )
 from hystdisc.fitting.predict import predict_dataset
 from hystdisc.fitting.simulate import simulate_entries, simulate_systems
@@ -32,8 +35,10 @@ __all__ = [
     "OEFit",
     "OutputErrorFitter",
     "Parametrization",
+    "StructuralParametrization",
     "SystemParametrization",
     "TermParametrization",
+    "family_parametrization",
     "levenberg_marquardt",
     "predict_dataset",
     "simulate_entries",

@@ -118,8 +118,19 @@ class OEFit:
 
     @property
     def is_system(self) -> bool:
-        """The fitted model is a state-space system (no term form)."""
+        """The fitted model is a state-space family's (no term form, not even a term part
+        around a structural effect)."""
+        if getattr(self.par, "rigid_terms", None) is not None:
+            return False
         return not isinstance(self.model, TermModel)
+
+    @property
+    def term_part(self) -> TermModel:
+        """The term form of the fitted model without the internal states of a structural
+        effect (the damper, rig spring and term effects; the whole model when it has no
+        structural effect). Raises for a state-space model that has no term part."""
+        rigid = getattr(self.par, "rigid_terms", None)
+        return rigid(self.x) if rigid is not None else self.par.terms(self.x)
 
 
 class OutputErrorFitter:

@@ -130,8 +130,9 @@ class FamilyParametrization(Parametrization):
         self.x0 = _clip_start(x0, self.lower, self.upper)
 
     def like(self, start: dict[str, float], effects: tuple[str, ...]) -> FamilyParametrization:
-        """The same family, normalization and fixed parameters with other ``effects``."""
-        return FamilyParametrization(
+        """The same family, normalization and fixed parameters with other ``effects`` (a
+        :class:`StructuralParametrization` when one of them is structural)."""
+        return family_parametrization(
             self.family, self.experiment, start, effects, self.fixed, self.norm
         )
 
@@ -141,6 +142,12 @@ class FamilyParametrization(Parametrization):
         if self.derived:
             p["delta"] = p["beta"] + p["gamma"]
         return p
+
+    def rigid_terms(self, x) -> TermModel:
+        """The term form of the family, rig spring and term effects: the whole model here;
+        without the internal states of a structural effect in a
+        :class:`StructuralParametrization`."""
+        return FamilyParametrization.terms(self, x)
 
     def terms(self, x):
         p = self.params(x)
@@ -313,3 +320,67 @@ class FamilySystemParametrization(SystemParametrization):
 
     def model(self, x: np.ndarray):
         return (self.system, self.values(x))
+
+
+class StructuralParametrization(FamilyParametrization, SystemParametrization):
+    """A family plus effects of which one is *structural* (it adds states, e.g.
+    ``series_compliance``): fitted as the state-space model that realizes it.
+
+    Parameters, bounds and :meth:`like` are those of :class:`FamilyParametrization`
+    (the structural effect's parameters among the effects'); :meth:`model` is the
+    effect's state-space model (:meth:`~hystdisc.models.Effect.system_model`) around the
+    rest of the model in term form (:meth:`rigid_terms`), simulated by the
+    error-controlled integrator. :meth:`terms` raises as for any state-space model.
+
+    Examples
+    --------
+    >>> par = family_parametrization("dahl", "release", {"k_w": 900.0}, ("series_compliance",))
+    >>> type(par).__name__, par.names[-3:], par.has_state()
+    ('StructuralParametrization', ['m_w', 'k_w', 'c_w'], True)
+    >>> system, values = par.model(par.x0)
+    >>> system.states, values["k_w"]
+    (('theta', 'theta_dot', 'z', 'y', 'y_dot'), 900.0)
+    """
+
+    def __init__(self, *args, **kwargs) -> None:
+        FamilyParametrization.__init__(self, *args, **kwargs)
+        found = [e for e in self.effects if EFFECTS[e].structural]
+        if len(found) != 1:
+            raise HystdiscError(
+                f"{self.family.name}: {len(found)} structural effects among "
+                f"{', '.join(self.effects) or 'none'}; fix: add exactly one"
+            )
+        self.structure = EFFECTS[found[0]]
+        self.system = self.structure.system_model(self.rigid_terms(self.x0))
+
+    def model(self, x: np.ndarray):
+        p = self.params(x)
+        system = self.structure.system_model(self.rigid_terms(x))
+        return (system, {q.name: p[q.name] for q in self.structure.params})
+
+    def terms(self, x: np.ndarray) -> TermModel:
+        return SystemParametrization.terms(self, x)
+
+    def has_state(self) -> bool:
+        return bool(self.rigid_terms(self.x0).hysteresis)
+
+    def simulate(self, data, models, runs, nuis, status_out=None, work_out=None):
+        return simulate_systems(data, models, runs, nuis, status_out, work_out)
+
+
+def family_parametrization(
+    family: str | Family,
+    experiment: str,
+    start: dict[str, float],
+    effects: tuple[str, ...] = (),
+    fixed: dict[str, float] | None = None,
+    normalization: str = "z_sat",
+) -> FamilyParametrization:
+    """A :class:`FamilyParametrization`, or a :class:`StructuralParametrization` when one
+    of ``effects`` is structural (same arguments)."""
+    cls = (
+        StructuralParametrization
+        if any(EFFECTS[e].structural for e in effects)
+        else FamilyParametrization
+    )
+    return cls(family, experiment, start, tuple(effects), fixed, normalization)

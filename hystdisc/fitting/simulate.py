@@ -32,6 +32,10 @@ FIT_MAX_SUB = 8
 #: relative step 1e-6 need the integration far below that).
 SYSTEM_RTOL = 1e-10
 SYSTEM_ATOL = 1e-13
+#: Steps of the error-controlled integrator per measured sample interval while fitting: a
+#: candidate whose dynamics need more (a series mass driven towards zero, a stiff wheel)
+#: counts as diverged, and the optimizer backs away.
+SYSTEM_MAX_STEPS = 50
 #: What a diverged prediction is replaced by.
 DIVERGED = 1e6
 
@@ -181,6 +185,7 @@ def simulate_systems(
                 inputs=_system_inputs(data, r, model),
                 rtol=SYSTEM_RTOL,
                 atol=SYSTEM_ATOL,
+                max_steps_per_sample=SYSTEM_MAX_STEPS * steps[r],
             ).y
             bad = not np.all(np.isfinite(y))
         except HystdiscError:

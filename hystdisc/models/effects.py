@@ -5,6 +5,7 @@ See doc/design.rst section 6 (closing the loop) for the catalogue and how it is 
 
 from __future__ import annotations
 
+import importlib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
@@ -31,6 +32,16 @@ class Effect:
     hint : str
         What the data point at when they want the effect with a sign outside its
         admissible bounds (it is then reported, not added).
+    system : str
+        Empty for an effect in term form. A *structural* effect adds states instead of
+        torque terms: ``module:Class`` of the :class:`~hystdisc.models.system.StateSpaceModel`
+        that realizes it (built from the rest of the model in term form, see
+        :meth:`system_model`); it has no ``terms`` and is fitted as a state-space system.
+    significance : tuple of str
+        The parameters whose significance (value over standard error) says the effect is
+        there; empty: all of them.
+    experiments : tuple of str
+        The experiment types the effect is built for; empty: all.
     """
 
     name: str
@@ -40,6 +51,29 @@ class Effect:
     to_torque: Callable[[Mapping[str, float], float], dict[str, float]]
     from_torque: Callable[[Mapping[str, float], float], dict[str, float]]
     hint: str = ""
+    system: str = ""
+    significance: tuple[str, ...] = ()
+    experiments: tuple[str, ...] = ()
+
+    @property
+    def structural(self) -> bool:
+        """The effect adds states (a state-space model realizes it), not torque terms."""
+        return bool(self.system)
+
+    def system_model(self, terms):
+        """The state-space model of a structural effect around ``terms`` (the rest of the
+        model in term form: damper, rig spring, term effects).
+
+        Examples
+        --------
+        >>> from hystdisc.models import Model
+        >>> SERIES_COMPLIANCE.system_model(Model("dahl").to_terms()).states
+        ('theta', 'theta_dot', 'z', 'y', 'y_dot')
+        """
+        if not self.system:
+            raise ValueError(f"{self.name} is not a structural effect")
+        module, _, attr = self.system.partition(":")
+        return getattr(importlib.import_module(module), attr)(terms)
 
     def inadmissible(self, values: Mapping[str, float]) -> list[str]:
         """The parameters whose ``values`` lie outside their admissible bounds.
@@ -143,3 +177,24 @@ CHANNEL_DELAY = Effect(
     lambda p, ks: {},
     lambda c, ks: {"tau_d": 0.0},
 )
+
+
+SERIES_COMPLIANCE = Effect(
+    "series_compliance",
+    (
+        Param("m_w", "kg*m^2 per unit J", 1e-9, BIG, 0.2, "wheel inertia (series mass)"),
+        Param("k_w", "N*m/rad per unit J", 1e-9, BIG, 5000.0, "wheel (tyre) stiffness"),
+        Param("c_w", "N*m*s/rad per unit J", 0.0, BIG, 5.0, "wheel (tyre) damping"),
+    ),
+    (),
+    "an internal degree of freedom: the damper acts on a wheel on a spring and dashpot "
+    "(k_w, c_w, inertia m_w per unit beam inertia), not on the ground",
+    lambda p, ks: {},
+    lambda c, ks: {},
+    system="hystdisc.models.wheel:TermsOnCompliantWheel",
+    significance=("k_w",),
+    experiments=("release",),
+)
+"""The SAS beam on a compliant wheel (structural: :class:`~hystdisc.models.wheel.TermsOnCompliantWheel`).
+Its significance is that of the compliance ``1/k_w`` (the same z-score as ``k_w``): a
+stiff wheel whose ``k_w`` the data do not bound is the rig without it."""

@@ -14,6 +14,12 @@ spring). With a stiff wheel (``k_w`` large) the model is the seed's rig. Nothing
 this module knows about it: it is a :class:`~hystdisc.models.system.StateSpaceModel`
 like any other.
 
+:class:`TermsOnCompliantWheel` is the same rig around any model in term form (a family
+plus effects, as a fit builds it): the structural effect ``series_compliance``. The
+terms in ``theta`` alone (:data:`RIG_TERMS`: the spring, its offset and cubic
+stiffening) act between the beam and the ground; every other term acts across the
+damper, on the relative motion ``r = theta - y``.
+
 Examples
 --------
 >>> m = BeamOnCompliantWheel("dahl")
@@ -33,17 +39,25 @@ from collections.abc import Mapping
 import numba
 import numpy as np
 
-from hystdisc.models.compiled import N_BASE, TERM_SIZE, term_torque, term_vector, vector_rate
-from hystdisc.models.params import BIG, RIG_PARAMS, Param
+from hystdisc.models.compiled import (
+    N_BASE,
+    TERM_SIZE,
+    base_coefficients,
+    term_torque,
+    term_vector,
+    vector_rate,
+)
+from hystdisc.models.effects import SERIES_COMPLIANCE
+from hystdisc.models.params import RIG_PARAMS
 from hystdisc.models.system import StateSpaceModel
-from hystdisc.models.terms import SIGN_EPS
+from hystdisc.models.terms import SIGN_EPS, TermModel
 from hystdisc.registry import get_family
 
-WHEEL_PARAMS = (
-    Param("m_w", "kg*m^2 per unit J", 1e-9, BIG, 0.2, "wheel inertia"),
-    Param("k_w", "N*m/rad per unit J", 0.0, BIG, 5000.0, "wheel (tyre) stiffness"),
-    Param("c_w", "N*m*s/rad per unit J", 0.0, BIG, 5.0, "wheel (tyre) damping"),
-)
+#: The wheel's parameters (per unit beam inertia): those of the ``series_compliance`` effect.
+WHEEL_PARAMS = SERIES_COMPLIANCE.params
+
+#: Torque terms of the rig (beam to ground), not of the damper.
+RIG_TERMS = ("theta", "theta^3", "1")
 
 # p layout: the damper's term_vector (no rig spring in it), eps, k_s, m_w, k_w, c_w
 _EPS = TERM_SIZE
@@ -98,4 +112,78 @@ class BeamOnCompliantWheel(StateSpaceModel):
             "theta'' = -k_s*theta - T(theta - y, theta_dot - y_dot, z, i)\n"
             "m_w*y'' = T - k_w*y - c_w*y_dot\n"
             f"with T, dz/dt of {self.family.name}:\n{self.family.equations()}"
+        )
+
+
+# p layout (terms on a wheel): the damper's term_vector, the rig's base coefficients,
+# eps, m_w, k_w, c_w
+_RIG = TERM_SIZE
+_EPS2 = _RIG + N_BASE
+_MW = _EPS2 + 1
+
+
+@numba.njit(cache=True, nogil=True)
+def _terms_rate(x, u, p, dx):
+    th, w, z, y, v = x[0], x[1], x[2], x[3], x[4]
+    r_dot = w - v
+    T = term_torque(p[:N_BASE], th - y, r_dot, z, p[_EPS2])
+    R = term_torque(p[_RIG:_EPS2], th, w, 0.0, p[_EPS2])
+    dx[0] = w
+    dx[1] = -R - T
+    dx[2] = vector_rate(p, r_dot, z)
+    dx[3] = v
+    dx[4] = (T - p[_MW + 1] * y - p[_MW + 2] * v) / p[_MW]
+
+
+class TermsOnCompliantWheel(StateSpaceModel):
+    """A model in term form between the SAS beam and a compliant wheel (release).
+
+    The structural effect ``series_compliance``: the rig terms of ``terms``
+    (:data:`RIG_TERMS`) act on the beam, every other term across the damper on
+    ``theta - y``; the parameters are the wheel's (``m_w``, ``k_w``, ``c_w`` per unit
+    beam inertia).
+
+    Parameters
+    ----------
+    terms : TermModel
+        Damper, rig spring and term effects (e.g. ``Model("dahl").to_terms()``).
+
+    Examples
+    --------
+    >>> from hystdisc.models import Model
+    >>> m = TermsOnCompliantWheel(Model("dahl").to_terms())
+    >>> [p.name for p in m.params], m.states[3:]
+    (['m_w', 'k_w', 'c_w'], ('y', 'y_dot'))
+    >>> m.run_parameters({"k_w": 900.0}, current=0.0)[-3:].tolist()
+    [0.2, 900.0, 5.0]
+    """
+
+    states = ("theta", "theta_dot", "z", "y", "y_dot")
+    inputs = ()
+    output = "theta"
+    rate = staticmethod(_terms_rate)
+    observe = staticmethod(_output)
+    params = WHEEL_PARAMS
+
+    def __init__(self, terms: TermModel) -> None:
+        self.terms = terms
+        self.name = "term model on a compliant wheel"
+        rig = {k: v for k, v in terms.torque.items() if k in RIG_TERMS}
+        damper = {k: v for k, v in terms.torque.items() if k not in RIG_TERMS}
+        self.rig = TermModel(rig)
+        self.damper = TermModel(damper, dict(terms.hysteresis), terms.n, terms.J)
+
+    def run_parameters(self, values: Mapping[str, float], current: float) -> np.ndarray:
+        v = self.check(values)
+        tail = [SIGN_EPS, v["m_w"], v["k_w"], v["c_w"]]
+        return np.concatenate(
+            [term_vector(self.damper, current), base_coefficients(self.rig, current), tail]
+        )
+
+    def equations(self) -> str:
+        return (
+            "theta'' = -R(theta) - T(theta - y, theta_dot - y_dot, z, i)\n"
+            "m_w*y'' = T - k_w*y - c_w*y_dot\n"
+            f"with R the rig terms ({', '.join(self.rig.torque) or 'none'}) and T, dz/dt of:\n"
+            f"{self.damper.equations()}"
         )

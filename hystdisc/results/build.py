@@ -189,7 +189,7 @@ def build_results(disc: Any, dataset: Any) -> Results:
         "declared": disc.declared_,
         "equal_fits": disc.equal_fits_,
         "families": fams,
-        "model": None if final.is_system else term_model_to_dict(final.term_model),
+        "model": None if final.is_system else term_model_to_dict(final.term_part),
         "effects": loop.accepted if loop is not None else [],
         "unexplained": loop.unexplained if loop is not None else False,
         # the residual over the samples the fit uses (driven start-up excluded)

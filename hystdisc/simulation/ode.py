@@ -66,7 +66,7 @@ def _input_at(U, k, f, out):
 
 
 @numba.njit(cache=False, nogil=True)
-def _integrate(rate, observe, x0, t, U, p, rtol, atol, X, Y):
+def _integrate(rate, observe, x0, t, U, p, rtol, atol, X, Y, max_steps):
     """Dormand–Prince 5(4) over the samples ``t``; returns 0 (ok) or 1 (failed)."""
     n = x0.shape[0]
     x = x0.copy()
@@ -131,7 +131,7 @@ def _integrate(rate, observe, x0, t, U, p, rtol, atol, X, Y):
                 err += (hh * e / sc) ** 2
             err = np.sqrt(err / n) if n > 0 else 0.0  # a model without states (algebraic)
             steps += 1
-            if not np.isfinite(err) or steps > MAX_STEPS_PER_SAMPLE:
+            if not np.isfinite(err) or steps > max_steps:
                 return 1
             fac = 5.0 if err == 0.0 else min(5.0, max(0.2, 0.9 * err**-0.2))
             if err <= 1.0:
@@ -175,6 +175,7 @@ def simulate_system(
     inputs: Mapping[str, np.ndarray] | None = None,
     rtol: float = RTOL,
     atol: float = ATOL,
+    max_steps_per_sample: int = MAX_STEPS_PER_SAMPLE,
 ) -> SystemResult:
     """Simulate one run of any state-space model.
 
@@ -194,6 +195,10 @@ def simulate_system(
         One array per name in ``model.inputs``, sampled at ``t``.
     rtol, atol : float
         Local error tolerances of the step control.
+    max_steps_per_sample : int
+        Steps (accepted or rejected) allowed per sample interval before the run is given
+        up as diverged or stalled (a fit caps it lower: a candidate too stiff to resolve
+        is not worth resolving inside an optimizer).
 
     Returns
     -------
@@ -230,7 +235,9 @@ def simulate_system(
     p = np.ascontiguousarray(model.run_parameters(dict(values or {}), float(current)))
     X = np.full((t.size, x0.size), np.nan)
     Y = np.full(t.size, np.nan)
-    status = _integrate(model.rate, model.observe, x0, t, U, p, rtol, atol, X, Y)
+    status = _integrate(
+        model.rate, model.observe, x0, t, U, p, rtol, atol, X, Y, int(max_steps_per_sample)
+    )
     if status:
         raise HystdiscError(
             f"{model.name}: the simulation diverged or stalled; fix: check the parameters"

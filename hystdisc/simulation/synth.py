@@ -16,6 +16,12 @@ signal (``theta`` for release/forced, ``torque`` for driven, plus ``theta_noise`
 driven ``theta``), drawn from ``np.random.default_rng(seed)``, then optional encoder
 quantization of ``theta`` (``encoder_counts`` per turn: ``q = 2 pi / counts``).
 
+A structural effect (``series_compliance``: the beam on a compliant wheel) makes the
+model a state-space system; its runs are simulated by the error-controlled integrator
+(:func:`~hystdisc.simulation.ode.simulate_system`) from rest at ``theta0``, the wheel at
+rest at 0 (``--effect series_compliance:k_w=900,c_w=3,m_w=0.3`` on the command line,
+``[effects.series_compliance]`` in a scenario; release experiments only).
+
 Scenarios are TOML files with the same settings as ``hystdisc simulate`` (see
 :func:`load_scenario`).
 
@@ -481,6 +487,7 @@ def generate(
     if kind.has_input:
         spec = _check_input_spec(input_spec)
         inputs = [make_input(spec, t, rng) for _ in cur]
+    structural = None if _is_system(mdl) else _structural(mdl, exp)
     if _is_system(mdl):
         sys, values = mdl.system(exp)
         thetas = [
@@ -494,15 +501,48 @@ def generate(
             ).y
             for k, c in enumerate(cur)
         ]
+    elif structural is None:
+        thetas = [s.theta for s in simulate_mech(mdl, [t] * len(cur), cur, th0, inputs=inputs)[0]]
     else:
-        sims, _ = simulate_mech(mdl, [t] * len(cur), cur, th0, inputs=inputs)
-        thetas = [sim.theta for sim in sims]
+        thetas = _simulate_structural(mdl, structural, t, cur, th0)
     runs = []
     for k, (c, theta) in enumerate(zip(cur, thetas, strict=True)):
         theta_m = _measure_theta(np.interp(t - delay, t, theta), noise, q, rng)
         extra = {"input": inputs[k]} if inputs is not None else {}
         runs.append(Run(str(k), t.copy(), theta_m, c, **extra))
     return Dataset(runs, exp, source)
+
+
+def _structural(mdl: Model | TermModel, exp: str) -> str | None:
+    """The structural effect of ``mdl`` (None without one), checked against ``exp``."""
+    if not isinstance(mdl, Model):
+        return None
+    names = [e for e in mdl.effects if registry.get_effect(e).structural]
+    if not names:
+        return None
+    if len(names) > 1:
+        raise HystdiscError(
+            f"effects {', '.join(names)} each add states; fix: simulate one of them at a time"
+        )
+    eff = registry.get_effect(names[0])
+    if eff.experiments and exp not in eff.experiments:
+        raise HystdiscError(
+            f"{eff.name} is built for {', '.join(eff.experiments)} experiments, not {exp}; "
+            f"fix: drop it or use --experiment {eff.experiments[0]}"
+        )
+    return names[0]
+
+
+def _simulate_structural(
+    mdl: Model, name: str, t: np.ndarray, cur: Sequence[float], th0: Sequence[float]
+) -> list[np.ndarray]:
+    """The measured angle of each run of ``mdl`` realized with its structural effect."""
+    system = registry.get_effect(name).system_model(mdl.to_terms())
+    out = []
+    for c, a in zip(cur, th0, strict=True):
+        sim = simulate_system(system, t, system.initial_state(theta=a), mdl.effects[name], c)
+        out.append(sim.y)
+    return out
 
 
 # ----------------------------------------------------------------------------- writing

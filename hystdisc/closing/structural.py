@@ -1,0 +1,269 @@
+"""Structural effects in the loop: diagnosis, starts that find the basin, multi-start refits.
+
+A structural effect (``series_compliance``: the SAS beam on a compliant wheel) adds
+states, not torque terms: the model plus the effect is a state-space system
+(:class:`~hystdisc.fitting.StructuralParametrization`). Its signature does not exist at
+the current optimum in the score test's sense (the rig without the wheel is the limit
+``k_w -> infinity`` of the model with it, where the output does not depend on ``m_w`` and
+``c_w`` at all), so it is diagnosed globally:
+
+1. **Starts** (:func:`structural_starts`): the current optimum (family, rig and term
+   effects) with the wheel at a grid of natural frequencies ``sqrt(k_w / m_w) / 2 pi``
+   above the beam's own (:data:`FREQUENCY_RATIOS` times it, plus the residual's spectral
+   peak when it lies above the beam's frequency: the resonance the unexplained-residual
+   diagnosis names), inertia ratios :data:`INERTIA_RATIOS` and damping ratios
+   :data:`DAMPING_RATIOS`.
+2. **Diagnosis** (:func:`score_structural`): every start is simulated once; the best one's
+   RSS reduction is the effect's evidence (an achieved share of the RSS, a lower bound of
+   what the refit will give) and predicts its BIC change.
+3. **Refit** (:func:`refit_structural`): the output-error fit runs from the
+   :data:`N_STARTS` best starts, the one with the lowest BIC is kept, and the spread of the
+   starts (their RMS and wheel stiffness) is reported in ``fit.extra["starts"]``.
+
+The refit is then judged like any effect (BIC, significance of the compliance
+``1/k_w``, excess share, held-out error, admissibility).
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+
+from hystdisc.closing.diagnostics import (
+    WHITE_P,
+    ljung_box_pooled,
+    residual_spectrum,
+    spectral_peak,
+)
+from hystdisc.closing.refit import EFFECT_BIC_MARGIN
+from hystdisc.closing.residual import natural_frequency
+from hystdisc.closing.scores import EffectScore
+from hystdisc.fitting import FitData, OEFit, OutputErrorFitter
+from hystdisc.models import EFFECTS
+from hystdisc.stats import bic_change, masked, sampling_rate
+
+#: Wheel natural frequencies of the start grid, in multiples of the beam's own.
+FREQUENCY_RATIOS = (1.5, 2.5, 4.0, 6.0, 10.0)
+#: Wheel inertias of the start grid, per unit beam inertia.
+INERTIA_RATIOS = (0.1, 0.3, 1.0)
+#: Damping ratios ``c_w / (2 sqrt(k_w m_w))`` of the start grid.
+DAMPING_RATIOS = (0.05, 0.3)
+#: A residual peak counts as above the beam's frequency beyond this multiple of it.
+PEAK_ABOVE = 1.3
+#: Output-error fits per structural refit (from the best screened starts).
+N_STARTS = 3
+
+
+def _wheel(f_hz: float, m: float, zeta: float) -> dict[str, float]:
+    k = m * (2.0 * np.pi * f_hz) ** 2
+    return {"m_w": m, "k_w": k, "c_w": 2.0 * zeta * np.sqrt(k * m)}
+
+
+def residual_peak(fit: OEFit, data: FitData) -> float | None:
+    """Frequency (Hz) of the residual's resonance above the beam's own frequency: the
+    largest peak of its run-averaged spectrum when the residual is not white, the peak
+    is a resonance (quality factor 2 or more) and it lies between :data:`PEAK_ABOVE`
+    and twice the top of :data:`FREQUENCY_RATIOS` times the beam's frequency; else None."""
+    f_beam = natural_frequency(fit, data.experiment)
+    res = [r for r in masked(fit.residuals, data.mask) if len(r) > 10]
+    if not res or f_beam is None or ljung_box_pooled(res) >= WHITE_P:
+        return None
+    f, psd, resolution = residual_spectrum(res, sampling_rate(data.t))
+    fk, q = spectral_peak(f, psd, f_min=resolution)
+    inside = PEAK_ABOVE * f_beam < fk < 2 * max(FREQUENCY_RATIOS) * f_beam
+    return float(fk) if np.isfinite(fk) and inside and q >= 2.0 else None
+
+
+def structural_starts(fit: OEFit, data: FitData, name: str) -> list[dict[str, float]]:
+    """Starts of ``fit``'s model plus the structural effect ``name`` (see the module docstring).
+
+    Parameters
+    ----------
+    fit : OEFit
+        The current fit (a family parametrization with term effects).
+    data : FitData
+        Its data (for the residual's spectral peak).
+    name : str
+        The structural effect (``series_compliance``).
+
+    Returns
+    -------
+    list of dict
+        Full parameter starts (the current optimum with the effect's parameters set).
+    """
+    f_beam = natural_frequency(fit, data.experiment)
+    if f_beam is None:
+        return []
+    freqs = [r * f_beam for r in FREQUENCY_RATIOS]
+    peak = residual_peak(fit, data)
+    if peak is not None:
+        freqs.append(peak)
+    out = []
+    for f, m, zeta in itertools.product(freqs, INERTIA_RATIOS, DAMPING_RATIOS):
+        start = dict(fit.params)
+        start.update(_wheel(f, m, zeta))
+        out.append(start)
+    return out
+
+
+def _rss_at(data: FitData, fit: OEFit, name: str, start: dict) -> tuple[float, np.ndarray]:
+    """RSS and per-run RSS of ``fit``'s structure plus ``name`` at ``start``."""
+    par = fit.par.like(start, (*fit.par.effects, name))
+    v = np.concatenate([par.x0, np.asarray(fit.nuisance, dtype=float).ravel()])
+    fitter = OutputErrorFitter(data, par)
+    with np.errstate(all="ignore"):
+        r = fitter.residuals(v)
+    if not np.all(np.isfinite(r)):
+        return float("inf"), np.full(data.n_runs, np.inf)
+    rows = fitter.row_offsets
+    per = np.array(
+        [float(r[rows[k] : rows[k + 1]] @ r[rows[k] : rows[k + 1]]) for k in range(data.n_runs)]
+    )
+    return float(r @ r), per
+
+
+def score_structural(data: FitData, fit: OEFit, name: str) -> EffectScore | None:
+    """Diagnose the structural effect ``name`` by its screened starts (module docstring).
+
+    Parameters
+    ----------
+    data : FitData
+        The data.
+    fit : OEFit
+        The current fit.
+    name : str
+        The structural effect.
+
+    Returns
+    -------
+    EffectScore or None
+        ``evidence`` is the share of the RSS the best start removes, ``starts`` the starts
+        ranked by their RSS (None when the rig has no frequency to start from).
+    """
+    starts = structural_starts(fit, data, name)
+    if not starts:
+        return None
+    ranked = []
+    for st in starts:
+        rss, per = _rss_at(data, fit, name, st)
+        if np.isfinite(rss):
+            ranked.append((rss, per, st))
+    if not ranked:
+        return None
+    ranked.sort(key=lambda t: t[0])
+    rss, per, best = ranked[0]
+    peak = residual_peak(fit, data)
+    rows = np.cumsum([0] + [int(m.sum()) for m in data.mask])
+    base_per = [float(np.sum(r[m] ** 2)) for r, m in zip(fit.residuals, data.mask, strict=True)]
+    N = int(rows[-1])
+    gain = max(fit.rss - rss, 0.0)
+    eff = EFFECTS[name]
+    q = len(eff.params)
+    s2 = fit.rss / max(N - fit.n_params, 1)
+    return EffectScore(
+        name=name,
+        terms=eff.terms,
+        evidence=float(gain / fit.rss) if fit.rss > 0 else 0.0,
+        per_run=[
+            float(max(b - a, 0.0) / b) if b > 0 else 0.0 for a, b in zip(per, base_per, strict=True)
+        ],
+        lm=float(gain / s2) if s2 > 0 else 0.0,
+        predicted_rms=float(np.sqrt(min(rss, fit.rss) / N)),
+        predicted_dbic=bic_change(min(rss, fit.rss), fit.rss, N, q),
+        estimate={p.name: float(best[p.name]) for p in eff.params},
+        start_rms=float(np.sqrt(rss / N)),
+        start_dbic=bic_change(rss, fit.rss, N, q),
+        start=best,
+        starts=[st for _, _, st in ranked],
+        signature=None
+        if peak is None
+        else f"a residual resonance near {peak:.3g} Hz, above the beam's",
+    )
+
+
+def distinct_starts(starts: list[dict], n: int, rel: float = 0.2) -> list[dict]:
+    """The first ``n`` of ``starts`` whose wheel frequencies ``sqrt(k_w / m_w)`` differ by
+    more than ``rel`` from each other (the ranking's best of each frequency).
+
+    Examples
+    --------
+    >>> s = [{"k_w": 100.0, "m_w": 1.0}, {"k_w": 110.0, "m_w": 1.0}, {"k_w": 400.0, "m_w": 1.0}]
+    >>> [d["k_w"] for d in distinct_starts(s, 2)]
+    [100.0, 400.0]
+    """
+    out: list[dict] = []
+    for st in starts:
+        w = np.sqrt(st["k_w"] / st["m_w"])
+        if all(abs(w / np.sqrt(o["k_w"] / o["m_w"]) - 1.0) > rel for o in out):
+            out.append(st)
+        if len(out) == n:
+            break
+    return out
+
+
+def refit_structural(
+    data: FitData,
+    fit: OEFit,
+    name: str,
+    starts: list[dict],
+    max_nfev: int = 60,
+    heldout: bool = False,
+    n_starts: int = N_STARTS,
+) -> OEFit:
+    """Fit ``fit``'s model plus the structural effect ``name`` from the best ``starts``.
+
+    Parameters
+    ----------
+    data : FitData
+        The data.
+    fit : OEFit
+        The current fit.
+    name : str
+        The structural effect.
+    starts : list of dict
+        Full starts, best first (:attr:`EffectScore.starts` of :func:`score_structural`).
+    max_nfev : int
+        Simulation budget of each fit.
+    heldout : bool
+        Compute the held-out error of the kept fit.
+    n_starts : int
+        Fits to run (the first ``n_starts`` starts).
+
+    Returns
+    -------
+    OEFit
+        The fit with the lowest BIC; ``extra["starts"]`` lists every start's outcome
+        (start and final ``k_w``, RMS, BIC) and ``extra["starts_spread"]`` the relative
+        spread of ``k_w`` among the starts within the BIC margin of the best.
+    """
+    eff = EFFECTS[name]
+    key = (eff.significance or tuple(p.name for p in eff.params))[0]
+    fits, rows = [], []
+    for st in distinct_starts(starts, n_starts):
+        par = fit.par.like(st, (*fit.par.effects, name))
+        with np.errstate(all="ignore"):
+            new = OutputErrorFitter(data, par, max_nfev=max_nfev).fit(heldout=False)
+        fits.append(new)
+        rows.append(
+            {
+                f"{key}_start": float(st[key]),
+                key: float(new.params.get(key, np.nan)),
+                "rms": float(new.rms),
+                "bic": float(new.bic),
+            }
+        )
+    ok = [f for f in fits if np.isfinite(f.bic)]
+    best = min(ok, key=lambda f: f.bic) if ok else fits[0]
+    if heldout and ok:
+        best = OutputErrorFitter(data, best.par, max_nfev=max_nfev).heldout_at(best)
+    near = [
+        r[key] for r in rows if np.isfinite(r["bic"]) and r["bic"] < best.bic + EFFECT_BIC_MARGIN
+    ]
+    best.extra["starts"] = rows
+    best.extra["starts_spread"] = (
+        float((max(near) - min(near)) / abs(best.params[key]))
+        if near and best.params.get(key)
+        else None
+    )
+    return best
