@@ -642,14 +642,7 @@ class Discovery(BaseEstimator):
         self.declared_ = self.model is not None
         selected = self.family_fits_[self.family_]
         self.loop_: LoopResult | None = None
-        if self.close_loop and selected.is_system:
-            warnings.warn(
-                f"{dataset.source}: the closing loop does not yet run on the state-space "
-                f"family {self.family_}; its fit is reported without effects",
-                HystdiscWarning,
-                stacklevel=2,
-            )
-        elif self.close_loop:
+        if self.close_loop:
             say("closing the loop: residual -> catalogued effects")
             self.loop_ = close_loop(
                 selected,

@@ -148,3 +148,18 @@ def test_tanh_is_selected_with_its_parameters_on_its_own_data():
     assert fit.heldout_rms < 1.1 * noise  # each sine condition predicted without it
     for k, v in TANH_TRUTH.items():
         assert abs(fit.params[k] - v) < 0.02 * abs(v), (k, fit.params[k], v)
+
+
+def test_the_loop_runs_on_spencer_and_finds_a_channel_delay():
+    m = Model("spencer", TRUTH)
+    kw = dict(currents=(0.0, 0.5, 1.0), duration=2.0, fs=250, drives=DRIVES, seed=1)
+    clean = generate(m, "driven", noise=0.0, **kw)
+    noise = 0.01 * float(np.median([np.max(np.abs(r.torque)) for r in clean.runs]))
+    data = generate(m, "driven", noise=noise, delay=0.004, **kw)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", HystdiscWarning)
+        d = Discovery(model="spencer").fit(data)
+    assert d.effects_ == ["channel_delay"]
+    assert abs(d.final_fit_.params["tau_d"] - 0.004) < 0.0005
+    assert d.final_fit_.rms < 1.1 * noise
+    assert d.results_.system_model["effects"] == ["channel_delay"]

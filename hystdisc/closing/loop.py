@@ -79,7 +79,13 @@ from hystdisc.closing.scores import EffectScore, score_effects, wald_chi2
 from hystdisc.closing.structural import refit_structural, score_structural
 from hystdisc.data.envelope import Envelope
 from hystdisc.errors import HystdiscError, HystdiscWarning
-from hystdisc.fitting import FamilyParametrization, FitData, OEFit, OutputErrorFitter
+from hystdisc.fitting import (
+    FamilyParametrization,
+    FamilySystemParametrization,
+    FitData,
+    OEFit,
+    OutputErrorFitter,
+)
 from hystdisc.models import EFFECTS
 from hystdisc.simulation.admissibility import check_admissible
 from hystdisc.stats import masked, sampling_rate
@@ -298,7 +304,11 @@ class _Round:
         # acceptance by prediction: the held-out error (pooled over folds) must fall too
         hb, ha = cur.heldout_rms, step["heldout_rms_after"]
         step["_predicts"] = hb is None or (ha is not None and ha < hb)
-        adm = check_admissible(new.term_part, self.envelope) if ok else None
+        adm = (
+            check_admissible(new.model if new.is_system else new.term_part, self.envelope)
+            if ok
+            else None
+        )
         step["admissible"] = bool(adm is None or adm.ok)
         step["_violation"] = adm.violations[0] if adm is not None and not adm.ok else None
         # the one-step estimate at the current optimum says which sign the data want; the
@@ -593,7 +603,7 @@ def close_loop(
         ``fit`` is the final fit with every accepted effect, ``effects`` their names.
     """
     try:
-        if not isinstance(fit.par, FamilyParametrization):
+        if not isinstance(fit.par, (FamilyParametrization, FamilySystemParametrization)):
             raise HystdiscError("the fit is not a family's own parametrization")
         return augment(
             data,
@@ -607,7 +617,7 @@ def close_loop(
             envelope=envelope,
         )
     except (HystdiscError, np.linalg.LinAlgError, ValueError, FloatingPointError) as exc:
-        name = fit.par.family.name if isinstance(fit.par, FamilyParametrization) else "the fit"
+        name = getattr(getattr(fit.par, "family", None), "name", "the fit")
         warnings.warn(
             f"closing the loop failed ({exc}); the residual of {name} is reported without effects",
             HystdiscWarning,

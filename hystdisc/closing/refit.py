@@ -69,11 +69,14 @@ def candidate_effects(fit: OEFit, data: FitData) -> tuple[list[str], list[dict]]
         ``{"name", "reason"}`` for each effect left out.
     """
     par = fit.par
-    tm = fit.term_part
+    system = fit.is_system  # a state-space family: no term form
+    tm = None if system else fit.term_part
     fam = par.family
     have = set(fam.torque_terms) | {t for e in par.effects for t in EFFECTS[e].terms}
     # terms the family can carry but fixed at zero (one current) do not count as present
-    have |= {k for k, v in tm.torque.items() if v != 0.0}
+    if tm is not None:
+        have |= {k for k, v in tm.torque.items() if v != 0.0}
+    has_state = tm.has_state if tm is not None else "z" in par.system.states
     levels = current_levels(data.currents)
     spring = has_spring(fit)
     exp = data.exp
@@ -82,7 +85,13 @@ def candidate_effects(fit: OEFit, data: FitData) -> tuple[list[str], list[dict]]
         reason = None
         if name in par.effects:
             continue
-        if eff.structural:
+        if system and (eff.structural or any(t.startswith("i") for t in eff.terms)):
+            reason = f"{fam.name} is a state-space family: " + (
+                "its structural form is not built"
+                if eff.structural
+                else "its own current laws cover the current dependence"
+            )
+        elif eff.structural:
             if eff.experiments and data.experiment not in eff.experiments:
                 reason = (
                     f"built for {', '.join(eff.experiments)} experiments only (its {data.experiment} "
@@ -97,7 +106,7 @@ def candidate_effects(fit: OEFit, data: FitData) -> tuple[list[str], list[dict]]
                 reason = f"a {exp.name} experiment records one channel"
         elif all(t in have for t in eff.terms):
             reason = f"{fam.name} already has {', '.join(eff.terms)}"
-        elif any(t in Z_TORQUE_TERMS for t in eff.terms) and not tm.has_state:
+        elif any(t in Z_TORQUE_TERMS for t in eff.terms) and not has_state:
             reason = f"{fam.name} has no hysteretic state z"
         elif any(t.startswith("i^2") for t in eff.terms) and levels < 3:
             reason = f"needs three current levels or more, the data have {levels}"
@@ -199,6 +208,8 @@ def screen_starts(
         grid, see :func:`stage1_start`).
     """
     N = sum(int(m.sum()) for m in data.mask)
+    if fit.is_system:
+        return  # a state-space family has no stage-1 structure to start from
     for sc in scores:
         if EFFECTS[sc.name].structural:
             continue  # its own starts (closing.structural)

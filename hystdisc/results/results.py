@@ -73,7 +73,7 @@ def migrate(data: dict) -> dict:
     Examples
     --------
     >>> migrate({"family": "dahl"})
-    {'schema_version': 3, 'family': 'dahl'}
+    {'schema_version': 4, 'family': 'dahl'}
     """
     version = data.get("schema_version", 1)
     if isinstance(version, bool) or not isinstance(version, int) or version < 1:
