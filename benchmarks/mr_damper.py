@@ -111,13 +111,22 @@ def full_set(files: list[str], work: Path, effects: bool) -> dict:
     return {"stdout": stdout, "wall": wall, "cpu": cpu, "results": res}
 
 
-def fold(folder: Path, work: Path, name: str, groups: dict[str, list[Path]], effects: bool):
+def fold(
+    folder: Path,
+    work: Path,
+    name: str,
+    groups: dict[str, list[Path]],
+    effects: bool,
+    families: str | None = None,
+):
     """Discover without test ``name``; predict it with the final model and with every
     family's fit (Bingham among them: the baseline)."""
     train = [str(f) for k, fs in groups.items() if k != name for f in fs]
     test = [str(f) for f in groups[name]]
     out = work / f"without_{name}"
     args = ["discover", *train, "--rig", str(RIG), "--out", str(out), "--force", "--no-heldout"]
+    if families:
+        args += ["--families", families]
     if not effects:
         args.append("--no-effects")
     t0 = time.perf_counter()
@@ -334,6 +343,11 @@ def main(argv=None) -> int:
     ap.add_argument("--no-effects", action="store_true", help="skip the closing loop")
     ap.add_argument("--tests", help="comma-separated subset of tests, e.g. 10mm1Hz,2mm5Hz")
     ap.add_argument(
+        "--fold-families",
+        help="families the left-out folds compare (default: all; e.g. bingham,bouc-wen-std,spencer)",
+    )
+    ap.add_argument("--no-per-current", action="store_true", help="skip the per-current fits")
+    ap.add_argument(
         "--reuse", action="store_true", help="keep the outputs an interrupted run left in --work"
     )
     args = ap.parse_args(argv)
@@ -354,11 +368,11 @@ def main(argv=None) -> int:
     full = full_set(files, work, effects)
     print(full["stdout"], file=sys.stderr, flush=True)
     print("per-current fits", file=sys.stderr, flush=True)
-    currents = per_current(groups, work, full["results"].family)
+    currents = [] if args.no_per_current else per_current(groups, work, full["results"].family)
     rows = []
     for name in list(groups)[: args.folds]:
         print(f"leave out {name}", file=sys.stderr, flush=True)
-        rows.append(fold(folder, work, name, groups, effects))
+        rows.append(fold(folder, work, name, groups, effects, args.fold_families))
         Path(args.out).write_text(report(full, rows, effects, currents), encoding="utf-8")
     subset = subset_validation(folder) if len(groups) == 6 else None
     text = report(full, rows, effects, currents, subset)

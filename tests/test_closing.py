@@ -196,6 +196,7 @@ def _fake_fit(family, experiment="release", effects=(), ks=158.0, ks_lo=150.0):
         par=par,
         term_model=par.terms(par.x0),
         term_part=par.rigid_terms(par.x0),
+        is_system=False,
         params=par.params(par.x0),
         ci95={"k_s": (ks_lo, 2 * ks - ks_lo)},
     )
