@@ -20,7 +20,7 @@ Examples
 >>> registry.get_effect("nope")
 Traceback (most recent call last):
 ...
-hystdisc.errors.HystdiscError: unknown effect 'nope'; fix: use one of current_viscous, current_saturation, coulomb, quadratic_damping, cubic_stiffness, offset
+hystdisc.errors.HystdiscError: unknown effect 'nope'; fix: use one of current_viscous, current_saturation, coulomb, quadratic_damping, cubic_stiffness, offset, shear_thinning
 """
 
 from __future__ import annotations
@@ -47,6 +47,7 @@ EFFECTS: dict[str, str] = {
     "quadratic_damping": "hystdisc.models.effects:QUADRATIC_DAMPING",
     "cubic_stiffness": "hystdisc.models.effects:CUBIC_STIFFNESS",
     "offset": "hystdisc.models.effects:OFFSET",
+    "shear_thinning": "hystdisc.models.effects:SHEAR_THINNING",
 }
 
 #: Experiment name -> ``module:attribute`` of its experiment object.
