@@ -6,7 +6,8 @@ sine tests, predict the left-out one with the final model (pooled NRMSE over its
 currents). Run it once with this tree and once with a tree without the effect (e.g. the
 main branch before it) to compare:
 
-    HYSTDISC_DATA=../shared/data PYTHONPATH=. python benchmarks/mr_thinning.py [--folds N]
+    HYSTDISC_DATA=../shared/data PYTHONPATH=. python benchmarks/mr_thinning.py \
+        [--folds N | --tests 10mm1Hz,5mm3Hz] [--no-full]
 
 NRMSE = RMS force error / RMS of the measured force over the same runs.
 """
@@ -55,6 +56,7 @@ def _loop_summary(disc) -> list[str]:
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--folds", type=int, default=6, help="how many left-out tests (of 6)")
+    ap.add_argument("--tests", help="comma-separated left-out tests (default: the first N)")
     ap.add_argument("--no-full", action="store_true", help="skip the fit on all 30 files")
     args = ap.parse_args()
     from hystdisc.data import load
@@ -65,7 +67,8 @@ def main() -> None:
         disc, wall = _fit([str(f) for fs in groups.values() for f in fs])
         print(f"full set ({wall:.0f} s):", *_loop_summary(disc), sep="\n  ", flush=True)
     rows = []
-    for name in list(groups)[: args.folds]:
+    names = args.tests.split(",") if args.tests else list(groups)[: args.folds]
+    for name in names:
         train = [str(f) for k, fs in groups.items() if k != name for f in fs]
         disc, wall = _fit(train)
         ds = load([str(f) for f in groups[name]], rig=str(RIG))
