@@ -57,6 +57,7 @@ EFFECTS: dict[str, str] = {
     "offset": "hystdisc.models.effects:OFFSET",
     "channel_delay": "hystdisc.models.effects:CHANNEL_DELAY",
     "series_compliance": "hystdisc.models.effects:SERIES_COMPLIANCE",
+    "shear_thinning": "hystdisc.models.effects:SHEAR_THINNING",
 }
 
 #: Experiment name -> ``module:attribute`` of its experiment object.

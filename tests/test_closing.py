@@ -212,7 +212,13 @@ def test_candidates_follow_the_family_and_the_data():
     assert cand == list(EFFECTS)  # Dahl lacks every catalogued effect
     assert skipped == []
     cand, skipped = candidate_effects(_fake_fit("bingham"), five)
-    assert cand == ["quadratic_damping", "cubic_stiffness", "offset", "series_compliance"]
+    assert cand == [
+        "quadratic_damping",
+        "cubic_stiffness",
+        "offset",
+        "series_compliance",
+        "shear_thinning",
+    ]
     reasons = {s["name"]: s["reason"] for s in skipped}
     assert "already has i*theta_dot" in reasons["current_viscous"]
     assert "already has sign(theta_dot)" in reasons["coulomb"]

@@ -55,6 +55,7 @@ assert TORQUE_TERM_NAMES == (
     "theta^3",
     "1",
     "i^2*theta_dot",
+    "sign(theta_dot)*|theta_dot|^m",
 )
 assert HYSTERESIS_TERM_NAMES == (
     "theta_dot",
@@ -83,6 +84,7 @@ def _ref_torque(a, th, w, z, i, eps):
         + a[10] * th * th * th
         + a[11]
         + a[12] * i * i * w
+        + a[13] * w / (w * w + eps * eps) ** 0.25  # at m = 0.5 (tests/test_thinning.py: any m)
     )
 
 

@@ -116,13 +116,16 @@ class EffectScore:
 def with_effects(fit: OEFit, extra: Sequence[str], values: dict[str, float] | None = None):
     """Parametrization of ``fit`` plus ``extra`` effects, and its vector at the optimum.
 
-    The effects' parameters are appended after the model's, at ``values`` (default 0).
+    The effects' parameters are appended after the model's, at ``values`` (default: where
+    the effect is absent, :meth:`~hystdisc.models.Effect.off_values`: torque coefficients
+    0, exponents at their defaults).
     """
     par0 = fit.par
     start = dict(fit.params)
     for e in extra:
+        off = EFFECTS[e].off_values()
         for p in EFFECTS[e].params:
-            start[p.name] = (values or {}).get(p.name, 0.0)
+            start[p.name] = (values or {}).get(p.name, off[p.name])
     par = par0.like(start, tuple(par0.effects) + tuple(extra))
     n0 = len(par0.names)
     if list(par.names[:n0]) != list(par0.names):  # pragma: no cover - guards a layout change
@@ -220,7 +223,7 @@ def _equation_evidence(
         m = eq.rows[k]
         th, w, zk = eq.theta[k][m], eq.theta_dot[k][m], z[k][m]
         i = float(eq.currents[k])
-        A = np.column_stack([TORQUE_TERMS[t](th, w, zk, i) for t in terms] or [np.zeros(th.size)])
+        A = np.column_stack([tm.term(t, th, w, zk, i) for t in terms] or [np.zeros(th.size)])
         pred = A @ coefs if terms else np.zeros(th.size)
         if inertia:
             pred = pred + tm.J * eq.theta_ddot[k][m]
@@ -326,6 +329,9 @@ def score_effects(
         left = max(rss_perp - red, 1e-300)
         dbic = bic_change(left, rss_perp, N, q)
         names = [p.name for p in EFFECTS[c].params]
+        # the step from where the effect is off (an exponent's column is 0 there)
+        off = EFFECTS[c].off_values()
+        beta = [off[n] + b for n, b in zip(names, beta, strict=True)]
         scores.append(
             EffectScore(
                 name=c,

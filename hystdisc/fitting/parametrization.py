@@ -155,8 +155,7 @@ class FamilyParametrization(Parametrization):
         tm.torque["theta"] = tm.torque.get("theta", 0.0) + p["k_s"]
         tm.J = p.get("J", 1.0)
         for e in self.effects:
-            for k, v in EFFECTS[e].to_torque(p, p["k_s"]).items():
-                tm.torque[k] = tm.torque.get(k, 0.0) + v
+            EFFECTS[e].apply(tm, p, p["k_s"])
         if "channel_delay" in self.effects:
             tm.delay = p["tau_d"]
         return tm

@@ -14,12 +14,15 @@ from hystdisc.models.params import BIG, RIG_PARAMS, Param, check_params
 from hystdisc.models.terms import (
     HYSTERESIS_TERM_NAMES,
     HYSTERESIS_TERMS,
+    SHEAR_M0,
+    SHEAR_TERM,
     SIGN_EPS,
     TORQUE_TERM_NAMES,
     TORQUE_TERMS,
     Z_TORQUE_TERMS,
     TermModel,
     format_equation,
+    smooth_power,
     smooth_sign,
 )
 
@@ -38,6 +41,8 @@ __all__ = [
     "HYSTERESIS_TERMS",
     "HYSTERESIS_TERM_NAMES",
     "RIG_PARAMS",
+    "SHEAR_M0",
+    "SHEAR_TERM",
     "SIGN_EPS",
     "TORQUE_TERMS",
     "TORQUE_TERM_NAMES",
@@ -51,5 +56,6 @@ __all__ = [
     "format_equation",
     "get_effect",
     "get_family",
+    "smooth_power",
     "smooth_sign",
 ]

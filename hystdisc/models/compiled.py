@@ -28,12 +28,12 @@ import math
 import numba
 import numpy as np
 
-from hystdisc.models.terms import TermModel
+from hystdisc.models.terms import SHEAR_TERM, TermModel
 
 # per-run base coefficients, after folding in the current
 #   0 theta, 1 theta_dot, 2 z, 3 |theta_dot| z, 4 sign(theta_dot), 5 theta_dot|theta_dot|,
-#   6 theta^3, 7 constant
-N_BASE = 8
+#   6 theta^3, 7 constant, 8 sign(theta_dot)|theta_dot|^m (shear thinning), 9 its exponent m
+N_BASE = 10
 
 
 def base_coefficients(tm: TermModel, current: float) -> np.ndarray:
@@ -49,6 +49,8 @@ def base_coefficients(tm: TermModel, current: float) -> np.ndarray:
     c[5] = g("theta_dot*|theta_dot|", 0.0)
     c[6] = g("theta^3", 0.0)
     c[7] = g("1", 0.0)
+    c[8] = g(SHEAR_TERM, 0.0)
+    c[9] = tm.m
     return c
 
 
@@ -77,6 +79,8 @@ def term_torque(c, th, w, z, eps):
         out += c[4] * math.tanh(w / eps)
     if c[6] != 0.0:
         out += c[6] * th * th * th
+    if c[8] != 0.0:  # shear thinning: the smoothed sign(w)|w|^m of terms.smooth_power
+        out += c[8] * w * (w * w + eps * eps) ** (0.5 * (c[9] - 1.0))
     return out
 
 

@@ -10,6 +10,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 from hystdisc.models.params import BIG, Param
+from hystdisc.models.terms import SHEAR_M0, SHEAR_TERM, TermModel
 
 
 @dataclass(frozen=True)
@@ -42,6 +43,11 @@ class Effect:
         there; empty: all of them.
     experiments : tuple of str
         The experiment types the effect is built for; empty: all.
+    exponents : tuple of (str, str)
+        Parameters that are not torque coefficients but an exponent of the term model:
+        (parameter name, :class:`~hystdisc.models.TermModel` attribute), e.g. the
+        shear-thinning exponent ``("m_st", "m")``. The effect is absent when its torque
+        coefficients are 0, whatever its exponents (:meth:`off_values`).
     """
 
     name: str
@@ -74,6 +80,35 @@ class Effect:
             raise ValueError(f"{self.name} is not a structural effect")
         module, _, attr = self.system.partition(":")
         return getattr(importlib.import_module(module), attr)(terms)
+
+    exponents: tuple[tuple[str, str], ...] = ()
+
+    def apply(self, tm: TermModel, values: Mapping[str, float], k_s: float) -> TermModel:
+        """Add the effect at parameters ``values`` to the term model ``tm`` (in place).
+
+        Examples
+        --------
+        >>> tm = SHEAR_THINNING.apply(TermModel({"theta_dot": 1.0}), {"c_st": 2.0, "m_st": 0.4}, 0.0)
+        >>> tm.torque, tm.m
+        ({'theta_dot': 1.0, 'sign(theta_dot)*|theta_dot|^m': 2.0}, 0.4)
+        """
+        for k, v in self.to_torque(values, k_s).items():
+            tm.torque[k] = tm.torque.get(k, 0.0) + v
+        for name, attr in self.exponents:
+            setattr(tm, attr, float(values[name]))
+        return tm
+
+    def off_values(self) -> dict[str, float]:
+        """Parameter values at which the effect is absent: torque coefficients 0, exponents
+        at their defaults (where the closing loop's score test switches the effect on).
+
+        Examples
+        --------
+        >>> SHEAR_THINNING.off_values(), COULOMB.off_values()
+        ({'c_st': 0.0, 'm_st': 0.5}, {'f_c': 0.0})
+        """
+        shape = {name for name, _ in self.exponents}
+        return {p.name: (p.default if p.name in shape else 0.0) for p in self.params}
 
     def inadmissible(self, values: Mapping[str, float]) -> list[str]:
         """The parameters whose ``values`` lie outside their admissible bounds.
@@ -130,8 +165,8 @@ _ONE_TERM = (
         Param("c_q", "N*m*s^2/rad^2", 0.0, BIG, 0.3, "quadratic (aerodynamic) damping"),
         "theta_dot*|theta_dot|",
         "damping growing with velocity squared, c_q * theta_dot*|theta_dot|",
-        "a damping force that grows less than linearly with velocity (shear thinning, a "
-        "yield force that saturates)",
+        "a damping force that grows less than linearly with velocity: shear_thinning "
+        "(c_st * sign(theta_dot)*|theta_dot|^m with m < 1), a yield force that saturates",
     ),
     (
         "cubic_stiffness",
@@ -198,3 +233,21 @@ SERIES_COMPLIANCE = Effect(
 """The SAS beam on a compliant wheel (structural: :class:`~hystdisc.models.wheel.TermsOnCompliantWheel`).
 Its significance is that of the compliance ``1/k_w`` (the same z-score as ``k_w``): a
 stiff wheel whose ``k_w`` the data do not bound is the rig without it."""
+
+
+SHEAR_THINNING = Effect(
+    "shear_thinning",
+    (
+        Param("c_st", "N*m*(s/rad)^m", 0.0, BIG, 0.3, "shear-thinning viscous coefficient"),
+        Param("m_st", "1", 1e-6, 1.0, SHEAR_M0, "shear-thinning exponent (0 < m <= 1)"),
+    ),
+    (SHEAR_TERM,),
+    "post-yield viscous torque growing as |theta_dot|^m, m <= 1 (Herschel-Bulkley MR "
+    "fluid), c_st * sign(theta_dot)*|theta_dot|^m",
+    lambda p, ks: {SHEAR_TERM: p["c_st"]},
+    # the stage-1 column is evaluated at the exponent SHEAR_M0
+    lambda c, ks: {"c_st": c.get(SHEAR_TERM, 0.0), "m_st": SHEAR_M0},
+    "a torque that grows faster than linearly with velocity (quadratic_damping), or a "
+    "yield torque too large at low velocity",
+    (("m_st", "m"),),
+)

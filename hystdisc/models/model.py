@@ -67,8 +67,7 @@ class Model:
         tm.torque["theta"] = tm.torque.get("theta", 0.0) + self.params["k_s"]
         tm.J = self.params["J"]
         for name, ep in self.effects.items():
-            for k, v in get_effect(name).to_torque(ep, self.params["k_s"]).items():
-                tm.torque[k] = tm.torque.get(k, 0.0) + v
+            get_effect(name).apply(tm, ep, self.params["k_s"])
         return tm
 
     def __repr__(self) -> str:

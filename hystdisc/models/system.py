@@ -249,11 +249,10 @@ class FamilySystem(StateSpaceModel):
     def run_parameters(self, values: Mapping[str, float], current: float) -> np.ndarray:
         v = self.check(values)
         ks = v.get("k_s", 0.0)
-        torque: dict[str, float] = {}
+        effects = TermModel()
         for e in self._effects:
-            for k, c in e.to_torque(v, ks).items():
-                torque[k] = torque.get(k, 0.0) + c
-        head = base_coefficients(TermModel(torque), current)
+            e.apply(effects, v, ks)
+        head = base_coefficients(effects, current)
         tail = [SIGN_EPS, ks, v.get("J", 1.0)]
         return np.concatenate([head, tail, self.family.block(v, current)])
 

@@ -48,6 +48,30 @@ def _pow_abs(z: np.ndarray, n: float) -> np.ndarray:
     return np.abs(z) ** n
 
 
+#: The shear-thinning (Herschel-Bulkley) torque term ``sign(theta_dot)*|theta_dot|^m``; its
+#: exponent is the term model's ``m`` (:attr:`TermModel.m`).
+SHEAR_TERM = "sign(theta_dot)*|theta_dot|^m"
+#: The exponent ``m`` of :data:`SHEAR_TERM` where the closing loop's score test and the
+#: stage-1 (equation-error) columns evaluate it, and a term model's default.
+SHEAR_M0 = 0.5
+
+
+def smooth_power(v: np.ndarray | float, m: float = SHEAR_M0, eps: float = SIGN_EPS) -> np.ndarray:
+    """Smoothed ``sign(v) |v|^m``: ``v (v^2 + eps^2)^((m - 1)/2)``.
+
+    Like :func:`smooth_sign` for Coulomb terms, the smoothing bounds the slope at ``v = 0``
+    (``eps^(m-1)`` instead of infinite for ``m < 1``); beyond a few ``eps`` it is the power
+    law (relative difference ``(1 - m) eps^2 / (2 v^2)``), and ``m = 1`` is ``v`` exactly.
+
+    Examples
+    --------
+    >>> round(float(smooth_power(4.0, 0.5)), 6), float(smooth_power(-0.25, 1.0))
+    (2.0, -0.25)
+    """
+    v = np.asarray(v, dtype=float)
+    return v * (v * v + eps * eps) ** (0.5 * (m - 1.0))
+
+
 # name -> f(theta, theta_dot, z, i); i is the run's coil current (scalar or array)
 TORQUE_TERMS: dict[str, Callable[..., np.ndarray]] = {
     "theta": lambda th, w, z, i: th,
@@ -63,6 +87,8 @@ TORQUE_TERMS: dict[str, Callable[..., np.ndarray]] = {
     "theta^3": lambda th, w, z, i: th**3,
     "1": lambda th, w, z, i: np.ones_like(np.asarray(th, dtype=float)),
     "i^2*theta_dot": lambda th, w, z, i: i * i * w,
+    # at the exponent SHEAR_M0; a term model evaluates it at its own m (TermModel.term)
+    SHEAR_TERM: lambda th, w, z, i, m=SHEAR_M0: smooth_power(w, m),
 }
 TORQUE_TERM_NAMES: tuple[str, ...] = tuple(TORQUE_TERMS)
 
@@ -94,6 +120,9 @@ class TermModel:
         Exponent used by the ``|z|^n`` hysteresis terms.
     J : float
         Inertia (mass); only used by ``forced`` experiments.
+    m : float
+        Exponent of the shear-thinning torque term :data:`SHEAR_TERM` (used only when the
+        model has that term).
     delay : float
         Delay of the measured output behind the model's, in s (the ``channel_delay``
         effect): the output is recorded as ``y(t - delay)``; 0 for none.
@@ -103,6 +132,7 @@ class TermModel:
     hysteresis: dict[str, float] = field(default_factory=dict)
     n: float = 1.0
     J: float = 1.0
+    m: float = SHEAR_M0
     delay: float = 0.0
 
     def __post_init__(self) -> None:
@@ -121,6 +151,7 @@ class TermModel:
         self.hysteresis = {k: float(v) for k, v in self.hysteresis.items()}
         self.n = float(self.n)
         self.J = float(self.J)
+        self.m = float(self.m)
         self.delay = float(self.delay)
 
     def torque_vector(self) -> np.ndarray:
@@ -136,12 +167,25 @@ class TermModel:
         """True when the model carries a hysteretic state ``z``."""
         return any(v != 0.0 for v in self.hysteresis.values())
 
+    def term(self, name: str, theta, theta_dot, z, i) -> np.ndarray:
+        """The values of torque term ``name`` (:data:`SHEAR_TERM` at this model's ``m``).
+
+        Examples
+        --------
+        >>> tm = TermModel({SHEAR_TERM: 1.0}, m=0.25)
+        >>> round(float(tm.term(SHEAR_TERM, 0.0, 16.0, 0.0, 0.0)), 6)
+        2.0
+        """
+        if name == SHEAR_TERM:
+            return TORQUE_TERMS[name](theta, theta_dot, z, i, self.m)
+        return TORQUE_TERMS[name](theta, theta_dot, z, i)
+
     def eval_torque(self, theta, theta_dot, z, i) -> np.ndarray:
         """Damper (plus spring) torque for arrays of states at current(s) ``i``."""
         out = np.zeros(np.broadcast(theta, theta_dot, z, i).shape)
         for name, c in self.torque.items():
             if c != 0.0:
-                out = out + c * TORQUE_TERMS[name](theta, theta_dot, z, i)
+                out = out + c * self.term(name, theta, theta_dot, z, i)
         return out
 
     def eval_rate(self, theta_dot, z) -> np.ndarray:
@@ -159,7 +203,8 @@ class TermModel:
         hyst = dict(self.hysteresis)
         for k, v in other.hysteresis.items():
             hyst[k] = hyst.get(k, 0.0) + v
-        return TermModel(torque, hyst, self.n, self.J, self.delay)
+        m = self.m if SHEAR_TERM in self.torque else other.m
+        return TermModel(torque, hyst, self.n, self.J, m, self.delay)
 
     def equations(self, precision: int = 4) -> str:
         """pysindy-style two-line print of the model (a third line for a channel delay).
@@ -178,7 +223,9 @@ class TermModel:
 
         rate = format_equation("dz/dt", self.hysteresis, precision)
         rate = rate.replace("*|z|^(n-1)", power(self.n - 1.0)).replace("*|z|^n", power(self.n))
-        out = format_equation("T", self.torque, precision) + "\n" + rate
+        torque = format_equation("T", self.torque, precision)
+        torque = torque.replace("|theta_dot|^m", f"|theta_dot|^{self.m:.{precision}g}")
+        out = torque + "\n" + rate
         if self.delay:
             out += f"\nmeasured(t) = model(t - {self.delay:.{precision}g} s)"
         return out

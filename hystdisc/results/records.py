@@ -18,7 +18,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-from hystdisc.models import TermModel
+from hystdisc.models import SHEAR_M0, SHEAR_TERM, TermModel
 from hystdisc.results.record import Record, list_of, record_of, table_of
 
 
@@ -29,8 +29,12 @@ def term_model_to_dict(tm: TermModel) -> dict:
     --------
     >>> term_model_to_dict(TermModel({"z": 1.0}, {"theta_dot": 2.0}))
     {'torque': {'z': 1.0}, 'hysteresis': {'theta_dot': 2.0}, 'n': 1.0, 'J': 1.0}
+
+    A model with the shear-thinning term also carries its exponent ``m``.
     """
     out = {"torque": dict(tm.torque), "hysteresis": dict(tm.hysteresis), "n": tm.n, "J": tm.J}
+    if SHEAR_TERM in tm.torque:
+        out["m"] = tm.m
     if tm.delay:
         out["delay"] = tm.delay  # the channel delay [s] (absent: 0, as older records)
     return out
@@ -43,6 +47,7 @@ def term_model_from_dict(d: Any) -> TermModel:
         {k: float(v) for k, v in d.get("hysteresis", {}).items()},
         float(d.get("n", 1.0)),
         float(d.get("J", 1.0)),
+        float(d.get("m", SHEAR_M0)),
         float(d.get("delay", 0.0) or 0.0),
     )
 
@@ -65,7 +70,8 @@ class TermModelRecord(Record):
         Delay of the measured output behind the model's, in s (``channel_delay``; 0 and
         absent in records without it).
     extra : dict
-        Keys this version does not know (kept on a round trip).
+        Keys this version does not know (kept on a round trip); ``m``, the exponent of
+        the shear-thinning term, when the model has that term.
     """
 
     torque: dict[str, float] = field(default_factory=dict)
@@ -83,7 +89,7 @@ class TermModelRecord(Record):
     def to_term_model(self) -> TermModel:
         """The :class:`~hystdisc.models.TermModel` (ValueError/TypeError when malformed)."""
         tm = term_model_from_dict(self)
-        values = [*tm.torque.values(), *tm.hysteresis.values(), tm.n, tm.J, tm.delay]
+        values = [*tm.torque.values(), *tm.hysteresis.values(), tm.n, tm.J, tm.m, tm.delay]
         if not all(math.isfinite(v) for v in values):
             raise ValueError("a coefficient is not finite")
         return tm

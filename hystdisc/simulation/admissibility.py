@@ -70,7 +70,11 @@ class Admissibility:
 
 def _damper(tm: TermModel) -> TermModel:
     return TermModel(
-        {k: v for k, v in tm.torque.items() if k not in RIG_TERMS}, dict(tm.hysteresis), tm.n, tm.J
+        {k: v for k, v in tm.torque.items() if k not in RIG_TERMS},
+        dict(tm.hysteresis),
+        tm.n,
+        tm.J,
+        tm.m,
     )
 
 

@@ -43,6 +43,13 @@ def _n_sub(c, b, n, J, th, w, z, h, eps, mech, u, ratio, min_sub, max_sub):
             sech2 = 1.0 - math.tanh(wmin / eps) ** 2
         dtdw = abs(c[1] + c[3] * z * (1.0 if w >= 0 else -1.0)) + abs(c[4]) / eps * sech2
         dtdw += 2.0 * abs(c[5] * w)
+        if c[8] != 0.0:
+            # shear thinning: its slope (w^2 + eps^2)^((m-1)/2) is largest at the smallest
+            # |w| the interval may reach (eps^(m-1) at w = 0)
+            if c[4] == 0.0:
+                acc = abs((u - term_torque(c, th, w, z, eps)) / J)
+            wlo = max(abs(w) - 1.5 * h * acc, 0.0)
+            dtdw += abs(c[8]) * (wlo * wlo + eps * eps) ** (0.5 * (c[9] - 1.0))
         if c[4] != 0.0:
             # resolve the fast sign transition in time (its rate is acc / eps)
             lam += sech2 * acc / eps
