@@ -249,5 +249,5 @@ SHEAR_THINNING = Effect(
     lambda c, ks: {"c_st": c.get(SHEAR_TERM, 0.0), "m_st": SHEAR_M0},
     "a torque that grows faster than linearly with velocity (quadratic_damping), or a "
     "yield torque too large at low velocity",
-    (("m_st", "m"),),
+    exponents=(("m_st", "m"),),
 )
