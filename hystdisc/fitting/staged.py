@@ -316,12 +316,14 @@ def heldout_level(
     fit = joint_fit(
         fd.subset(train), family_fit.par, family_fit.params, sub_laws, chosen, max_nfev, False
     )
-    nu = np.zeros((len(test), fit.nuisance.shape[1]))
     ref = fd.subset(test)
-    if fit.nuisance.shape[1]:
-        nu = ref.nuisance_start(fit.par.has_state()).reshape(len(test), -1)
-    preds = fit.par.simulate(
-        ref, [fit.par.model(fit.x)] * len(test), list(range(len(test))), list(nu)
-    )
-    e = np.concatenate([(p - ref.y[r])[ref.mask[r]] for r, p in enumerate(preds)])
+    e = np.concatenate([(p - ref.y[r])[ref.mask[r]] for r, p in enumerate(predict_runs(fit, ref))])
     return float(np.sqrt(np.mean(e * e)))
+
+
+def predict_runs(fit: OEFit, fd: FitData) -> list[np.ndarray]:
+    """The outputs of ``fit``'s model (any parametrization) simulated on the runs of ``fd``
+    (new runs: their initial states start from their first samples)."""
+    nu = fd.nuisance_start(fit.par.has_state()).reshape(fd.n_runs, -1)
+    runs = list(range(fd.n_runs))
+    return fit.par.simulate(fd, [fit.par.model(fit.x)] * fd.n_runs, runs, list(nu))
