@@ -13,6 +13,8 @@ from hystdisc.fitting import FamilyParametrization
 from hystdisc.fitting.laws import LawParametrization, choose_law, fit_law, law_value
 from hystdisc.fitting.staged import heldout_level, staged_fit
 from hystdisc.models import Model
+from hystdisc.report import render_report
+from hystdisc.results import Results
 from hystdisc.simulation.synth import generate
 
 CURRENTS = (0.0, 0.25, 0.5, 0.75, 1.0)
@@ -52,9 +54,10 @@ def synthetic(alpha, seed=1):
 
 
 def staged(alpha):
-    d = Discovery(model="bouc-wen-std", close_loop=False).fit(synthetic(alpha))
-    fit = d.family_fits_["bouc-wen-std"]
-    return d.fit_data_, fit, staged_fit(d.fit_data_, fit)
+    """The discovery with the staged step (the estimator's hook)."""
+    data = synthetic(alpha)
+    d = Discovery(model="bouc-wen-std", close_loop=False, staged=True).fit(data)
+    return d.fit_data_, d.family_fits_["bouc-wen-std"], d.staged_, d, data
 
 
 @pytest.fixture(scope="module")
@@ -93,7 +96,7 @@ def test_law_parametrization_rejects_an_undeclared_law():
 
 
 def test_linear_truth_keeps_the_linear_laws(linear_case):
-    fd, fit, st = linear_case
+    fd, fit, st, *_ = linear_case
     assert st.chosen == {"alpha": "linear", "c": "linear"}
     assert not st.changed and st.joint is fit
     # per-level values: within 1 % of the truth
@@ -110,7 +113,7 @@ def test_linear_truth_keeps_the_linear_laws(linear_case):
 
 
 def test_saturating_truth_is_found_and_predicts_a_left_out_level(saturating_case):
-    fd, fit, st = saturating_case
+    fd, fit, st, *_ = saturating_case
     assert st.chosen["alpha"] in ("saturating", "quadratic")
     assert st.chosen["c"] == "linear"
     cand = st.laws["alpha"]["candidates"]
@@ -129,3 +132,26 @@ def test_saturating_truth_is_found_and_predicts_a_left_out_level(saturating_case
     assert law < 1.2 * NOISE < 5 * NOISE < lin, (
         f"held-out RMS at 0.5 A: chosen laws {law:.4g}, linear {lin:.4g}"
     )
+
+
+def test_results_report_and_plot_carry_the_laws(saturating_case):
+    fd, fit, st, d, data = saturating_case
+    res = Results.from_json(d.results_.to_json())
+    cl = res.current_laws
+    assert cl["laws"]["alpha"]["law"] == st.chosen["alpha"]
+    assert [lv["current"] for lv in cl["levels"]] == list(CURRENTS)
+    assert cl["laws"]["alpha"]["values"] == pytest.approx(
+        [alpha_saturating(i) for i in CURRENTS], rel=0.01
+    )
+    assert cl["joint"]["heldout_rms"] < cl["linear"]["heldout_rms"]
+    html, md = render_report(d, data, max_runs=2, dpi=40)
+    assert 'id="current-laws"' in html and "held-out saturating" in md
+    assert md.count("| chosen laws |") == 1
+
+
+def test_staged_fit_needs_three_levels():
+    data = synthetic(alpha_linear)
+    two = Dataset([r for r in data.runs if r.current in (0.0, 1.0)], "driven", "two levels")
+    d = Discovery(model="bouc-wen-std", close_loop=False, heldout=False).fit(two)
+    with pytest.raises(HystdiscError, match="2 current level.s.: the staged fit needs 3"):
+        staged_fit(d.fit_data_, d.family_fits_["bouc-wen-std"])

@@ -19,17 +19,21 @@ from hystdisc.fitting.parametrization import (
 )
 from hystdisc.fitting.predict import predict_dataset
 from hystdisc.fitting.simulate import simulate_entries, simulate_systems
+from hystdisc.fitting.staged import MIN_STAGED_LEVELS, StagedFit, staged_fit
 
 __all__ = [
+    "MIN_STAGED_LEVELS",
     "FamilyParametrization",
     "FitData",
     "OEFit",
     "OutputErrorFitter",
     "Parametrization",
+    "StagedFit",
     "SystemParametrization",
     "TermParametrization",
     "levenberg_marquardt",
     "predict_dataset",
     "simulate_entries",
     "simulate_systems",
+    "staged_fit",
 ]

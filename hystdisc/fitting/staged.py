@@ -138,6 +138,64 @@ class StagedFit:
         lines += [f"  note: {n}" for n in self.notes]
         return "\n".join(lines)
 
+    def to_dict(self, run_names: list[str] | None = None) -> dict:
+        """The ``current_laws`` table of ``results.json`` (plain JSON values).
+
+        ``levels``: each level's current, runs, RMS and parameters with 95 % intervals;
+        ``laws``: per law, the parameter, its per-level values and intervals, the chosen
+        law, its coefficients by free-parameter name (``alpha_1``, ``alpha_2``,
+        ``alpha_i0``; ``a``, ``b`` and ``q`` or ``i0`` of :mod:`hystdisc.fitting.laws`), and
+        each candidate's held-out error (leave one level out: ``z`` in units of the level's
+        standard error, ``rms`` in the parameter's unit; null without enough levels);
+        ``joint`` and ``linear``: RMS, held-out RMS, BIC of the joint fits; ``joint`` also
+        its parameters with intervals.
+        """
+
+        def pars(fit: OEFit) -> dict:
+            return {
+                k: {"value": float(v), "ci95": [float(c) for c in fit.ci95.get(k, (v, v))]}
+                for k, v in fit.params.items()
+            }
+
+        def summary(fit: OEFit) -> dict:
+            ho = None if fit.heldout_rms is None else float(fit.heldout_rms)
+            return {"rms": float(fit.rms), "heldout_rms": ho, "bic": float(fit.bic)}
+
+        laws = {}
+        for key, d in self.laws.items():
+            names = law_names(key, d["parameter"], d["slope"], d["law"])
+            coefs = [d["coefs"][c] for c in LAWS[d["law"]]]
+            laws[key] = {
+                "parameter": d["parameter"],
+                "currents": [float(c) for c in d["currents"]],
+                "values": [float(v) for v in d["values"]],
+                "ci95": [[float(c) for c in ci] for ci in d["ci95"]],
+                "law": d["law"],
+                "coefficients": dict(zip(names, map(float, coefs), strict=True)),
+                "heldout": {
+                    law: None if c is None else {"z": float(c["z"]), "rms": float(c["rms"])}
+                    for law, c in d["candidates"].items()
+                },
+            }
+        return {
+            "family": self.family,
+            "heldout_by": "level",
+            "levels": [
+                {
+                    "current": lv.current,
+                    "runs": [run_names[r] for r in lv.runs] if run_names else list(lv.runs),
+                    "rms": float(lv.fit.rms),
+                    "parameters": pars(lv.fit),
+                }
+                for lv in self.levels
+            ],
+            "laws": laws,
+            "changed": self.changed,
+            "joint": {**summary(self.joint), "parameters": pars(self.joint)},
+            "linear": summary(self.linear),
+            "notes": list(self.notes),
+        }
+
 
 def _num(x: float | None) -> str:
     return "-" if x is None else f"{x:.4g}"

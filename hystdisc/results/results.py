@@ -148,6 +148,11 @@ class Results(Record):
         :class:`~hystdisc.data.envelope.Envelope`). ``predict`` warns beyond it.
     selection_note : str or None
         Why the selected family is not the one BIC alone would have chosen (schema 3).
+    current_laws : dict or None
+        The staged fit (``discover --staged``): per-level fits, each law parameter's
+        per-level values with intervals, the candidate laws' held-out errors, the chosen
+        law and its coefficients, the joint fits (see
+        :meth:`hystdisc.fitting.StagedFit.to_dict`); None without it.
     extra : dict
         Keys this version does not know (kept on a round trip).
     """
@@ -191,6 +196,7 @@ class Results(Record):
     conditions: dict[str, Any] | None = None
     envelope: dict[str, Any] | None = None
     selection_note: str | None = None
+    current_laws: dict[str, Any] | None = None
     extra: dict[str, Any] = field(default_factory=dict, repr=False)
 
     # ----------------------------------------------------------------- JSON
