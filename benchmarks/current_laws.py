@@ -45,6 +45,13 @@ def main(argv=None) -> int:
     ap.add_argument("--data", default=os.environ.get("HYSTDISC_DATA", "../shared/data"))
     ap.add_argument("--family", default="bouc-wen-std")
     ap.add_argument("--folds", type=int, default=6)
+    ap.add_argument(
+        "--heldout",
+        action="store_true",
+        help="in each fold, judge the chosen laws by the held-out conditions of the 25 "
+        "training files too (slower)",
+    )
+    ap.add_argument("--shape", default="shared", choices=("shared", "free"))
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results" / "current_laws.md"))
     args = ap.parse_args(argv)
     folder = Path(args.data) / "utfsm_mr_damper"
@@ -57,11 +64,13 @@ def main(argv=None) -> int:
     d = Discovery(model=args.family, close_loop=False, heldout=True).fit(ds, progress=say)
     fd: FitData = d.fit_data_
     fit = d.family_fits_[args.family]
-    st = staged_fit(fd, fit, progress=say)
+    st = staged_fit(fd, fit, progress=say, shape=args.shape)
     lines = [
         f"# Current laws of the UTFSM MR damper ({args.family}, 30 sine tests, 0-1 A)",
         "",
-        "`HYSTDISC_DATA=../shared/data PYTHONPATH=. python benchmarks/current_laws.py`",
+        "`HYSTDISC_DATA=../shared/data PYTHONPATH=. python benchmarks/current_laws.py "
+        + " ".join(sys.argv[1:])
+        + "`",
         "",
         "```",
         st.report(),
@@ -77,7 +86,7 @@ def main(argv=None) -> int:
         say(f"leave out {name}")
         ftr, fte = fd.subset(train), fd.subset(test)
         lin = OutputErrorFitter(ftr, fit.par, max_nfev=40).fit(heldout=False)
-        sf = staged_fit(ftr, lin, heldout=False, progress=say)
+        sf = staged_fit(ftr, lin, heldout=args.heldout, progress=say, shape=args.shape)
         row = {
             "test": name,
             "laws": ", ".join(f"{d_['parameter']} {d_['law']}" for d_ in sf.laws.values()),

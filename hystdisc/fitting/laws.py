@@ -41,6 +41,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 from scipy.optimize import minimize_scalar
+from scipy.stats import chi2
 
 from hystdisc.errors import HystdiscError
 from hystdisc.fitting.parametrization import Parametrization
@@ -57,6 +58,10 @@ MIN_LEVELS = {"linear": 3, "quadratic": 4, "saturating": 4}
 #: A simpler law whose held-out error is within this factor of the best one's wins (the
 #: family selection's rule, ``HELDOUT_CLEARLY_WORSE``).
 SIMPLER_WITHIN = 1.1
+#: The linear law is kept without a contest when it predicts the left-out levels within
+#: their uncertainty: the chi-square test of its leave-one-level-out errors (each over the
+#: level's variance plus the prediction's) has a p-value of at least this.
+LINEAR_P = 0.05
 #: Range of the saturation current searched, in units of the largest current.
 I0_RANGE = (0.02, 50.0)
 #: Interval floor, relative to the largest |value| (an interval of 0 would let one level
@@ -160,18 +165,49 @@ def loo_error(law: str, i: Sequence[float], v: Sequence[float], se: Sequence[flo
     }
 
 
+def linear_consistency(i: Sequence[float], v: Sequence[float], se: Sequence[float]) -> float:
+    """p-value of the linear law's leave-one-level-out errors (chi-square, one degree of
+    freedom per level): each error over its standard deviation, from the left-out level's
+    standard error and the variance of the prediction of the weighted fit to the others.
+
+    Examples
+    --------
+    >>> round(linear_consistency([0, 0.25, 0.5, 0.75, 1], [1, 1.5, 2, 2.5, 3], [0.1] * 5), 3)
+    1.0
+    >>> linear_consistency([0, 0.25, 0.5, 0.75, 1], [1, 2, 2.4, 2.6, 2.7], [0.01] * 5) < 1e-6
+    True
+    """
+    i = np.asarray(i, dtype=float)
+    v = np.asarray(v, dtype=float)
+    se = floored_se(v, se)
+    X = np.column_stack([np.ones_like(i), i])
+    stat = 0.0
+    for k in range(v.size):
+        keep = np.arange(v.size) != k
+        w = 1.0 / se[keep] ** 2
+        beta, _ = _wls(X[keep], v[keep], w)
+        cov = np.linalg.pinv((X[keep] * w[:, None]).T @ X[keep])
+        var = se[k] ** 2 + float(X[k] @ cov @ X[k])
+        stat += float((X[k] @ beta - v[k]) ** 2 / var)
+    return float(chi2.sf(stat, v.size))
+
+
 def choose_law(i: Sequence[float], v: Sequence[float], se: Sequence[float]) -> dict:
     """Choose a law for values ``v`` at currents ``i`` by their held-out error.
 
-    Every law with enough levels (:data:`MIN_LEVELS`) is scored by :func:`loo_error`; the
-    law with the fewest coefficients whose error is within :data:`SIMPLER_WITHIN` of the
-    best is chosen (linear when nothing else has enough levels).
+    Every law with enough levels (:data:`MIN_LEVELS`) is scored by :func:`loo_error`.
+    The linear law is kept when it predicts the left-out levels within their uncertainty
+    (:func:`linear_consistency` at least :data:`LINEAR_P`: a curvature the intervals do
+    not show is not claimed); otherwise the law with the fewest coefficients whose error
+    is within :data:`SIMPLER_WITHIN` of the best is chosen (linear when nothing else has
+    enough levels).
 
     Returns
     -------
     dict
         ``law`` (the choice), ``coefs`` (its coefficients fitted to every level),
-        ``candidates`` (each law's :func:`loo_error`, or None without enough levels).
+        ``candidates`` (each law's :func:`loo_error`, or None without enough levels),
+        ``linear_p`` (:func:`linear_consistency`).
 
     Examples
     --------
@@ -183,12 +219,18 @@ def choose_law(i: Sequence[float], v: Sequence[float], se: Sequence[float]) -> d
     se_f = floored_se(v, se)
     cand = {law: (loo_error(law, i, v, se_f) if n >= MIN_LEVELS[law] else None) for law in LAWS}
     scored = {k: c["z"] for k, c in cand.items() if c is not None and np.isfinite(c["z"])}
-    if not scored:
+    p_lin = linear_consistency(i, v, se_f) if n >= MIN_LEVELS["linear"] else 1.0
+    if not scored or p_lin >= LINEAR_P:
         law = "linear"
     else:
         best = min(scored.values())
         law = next(k for k in LAWS if k in scored and scored[k] <= SIMPLER_WITHIN * best)
-    return {"law": law, "coefs": fit_law(law, i, v, se_f), "candidates": cand}
+    return {
+        "law": law,
+        "coefs": fit_law(law, i, v, se_f),
+        "candidates": cand,
+        "linear_p": p_lin,
+    }
 
 
 def law_names(key: str, passive: str, slope: str, law: str) -> list[str]:

@@ -3,11 +3,13 @@
 1. The family is fitted at each current level on its own (:func:`level_fits`), 0 A
    first, each next level started from the last level's optimum, with its
    current-dependent parameters fixed at 0: its passive parameters (``alpha_1``, ``c_1``,
-   ...) ARE the values at that level, with 95 % intervals. The shape parameters (``beta``,
-   ``gamma``, ``n``, the rig spring) are free at every level too, as the seed's flowchart
-   identifies every parameter at each step: the figure then shows whether they move with
-   the current, and with the ``z_sat = 1`` normalization of Bouc-Wen a law parameter keeps
-   its meaning (the hysteretic force at saturation) whatever the shape does.
+   ...) ARE the values at that level, with 95 % intervals. By default the shape
+   parameters (``beta``, ``gamma``, ``n``, the rig spring) are held at the joint fit's
+   values (``shape="shared"``): the per-level values are then what the joint model needs
+   at each current, which is the question a law answers. With ``shape="free"`` every
+   parameter is fitted at every level (the seed's flowchart to the letter); on the real
+   UTFSM damper the exponent ``n`` then wanders from 0.4 at 0 A to 4.6 at 1 A and the
+   law parameters absorb the shape's changes (``benchmarks/results/current_laws.md``).
 2. Each law parameter's law is chosen among linear, quadratic and saturating by leaving
    one level out (:func:`hystdisc.fitting.laws.choose_law`): the law fitted to the other
    levels, weighted by their intervals, predicts the left-out level's value. This is
@@ -171,6 +173,8 @@ class StagedFit:
                 "values": [float(v) for v in d["values"]],
                 "ci95": [[float(c) for c in ci] for ci in d["ci95"]],
                 "law": d["law"],
+                "proposed": d.get("proposed", d["law"]),
+                "linear_p": float(d["linear_p"]),
                 "coefficients": dict(zip(names, map(float, coefs), strict=True)),
                 "heldout": {
                     law: None if c is None else {"z": float(c["z"]), "rms": float(c["rms"])}
@@ -208,10 +212,17 @@ def level_runs(currents: np.ndarray) -> tuple[np.ndarray, list[list[int]]]:
     return levels, [[r for r, k in enumerate(idx) if k == j] for j in range(levels.size)]
 
 
-def level_parametrization(par: FamilyParametrization, start: Mapping[str, float]):
-    """``par``'s family at one current: the current-dependent parameters fixed at 0."""
+def level_parametrization(
+    par: FamilyParametrization, start: Mapping[str, float], shared: bool = False
+):
+    """``par``'s family at one current: the current-dependent parameters fixed at 0 (and,
+    with ``shared``, every parameter but the laws' passive ones held at ``start``)."""
     fixed = dict(par.fixed)
     fixed.update({p: 0.0 for p in par.family.current_params})
+    if shared:
+        passive = {a for a, _ in par.family.current_laws.values()}
+        base = FamilyParametrization(par.family, par.experiment, dict(start), (), fixed, par.norm)
+        fixed.update({n: float(start[n]) for n in base.names if n not in passive})
     return FamilyParametrization(par.family, par.experiment, dict(start), (), fixed, par.norm)
 
 
@@ -221,19 +232,23 @@ def level_fits(
     start: Mapping[str, float],
     max_nfev: int = 40,
     progress: Callable[[str], None] | None = None,
+    shape: str = "shared",
 ) -> list[LevelFit]:
     """The family fitted at each current level, lowest first, each started from the last.
 
     ``start`` starts the lowest level (e.g. the joint fit's parameters: its passive ones
-    are the values at 0 A).
+    are the values at 0 A). ``shape="shared"`` holds every parameter but the laws' passive
+    ones at ``start`` (the joint fit's shape); ``"free"`` fits them at every level too.
     """
+    if shape not in ("shared", "free"):
+        raise HystdiscError(f"unknown shape option '{shape}'; fix: use shared or free")
     say = progress or (lambda msg: None)
     levels, groups = level_runs(fd.currents)
     out: list[LevelFit] = []
     s = dict(start)
     for cur, runs in zip(levels, groups, strict=True):
         say(f"staged fit: level {cur:g} A ({len(runs)} runs)")
-        lp = level_parametrization(par, s)
+        lp = level_parametrization(par, s, shared=shape == "shared")
         fit = OutputErrorFitter(fd.subset(runs), lp, max_nfev=max_nfev).fit(heldout=False)
         out.append(LevelFit(float(cur), runs, fit))
         s = dict(fit.params)
@@ -297,6 +312,7 @@ def staged_fit(
     max_nfev: int = 40,
     heldout: bool = True,
     progress: Callable[[str], None] | None = None,
+    shape: str = "shared",
 ) -> StagedFit:
     """Fit level by level, choose each law by held-out error, refit jointly with them.
 
@@ -313,6 +329,12 @@ def staged_fit(
         Compute the held-out error (leave one condition out) of the joint fit.
     progress : callable, optional
         Receives progress messages.
+    shape : {"shared", "free"}
+        The per-level fits hold the shape parameters at the joint fit's values
+        (``"shared"``: the values per level are what the joint fit would need at that
+        current, the question a law answers) or fit them at every level (``"free"``: the
+        seed's flowchart; the shape may then absorb what the current does, see
+        :func:`level_fits`).
     """
     par = family_fit.par
     if not isinstance(par, FamilyParametrization):
@@ -329,7 +351,7 @@ def staged_fit(
             f"{levels.size} current level(s): the staged fit needs {MIN_STAGED_LEVELS}; fix: "
             "record runs at more currents"
         )
-    fits = level_fits(fd, par, family_fit.params, max_nfev, progress)
+    fits = level_fits(fd, par, family_fit.params, max_nfev, progress, shape)
     laws, notes = choose_laws(par.family, fits)
     chosen = {k: d["law"] for k, d in laws.items()}
     changed = any(v != "linear" for v in chosen.values())
@@ -343,6 +365,25 @@ def staged_fit(
                 + ", ".join(f"{d['parameter']} {d['law']}" for d in laws.values())
             )
         joint = joint_fit(fd, par, family_fit.params, laws, chosen, max_nfev, heldout)
+        h_law, h_lin = joint.heldout_rms, linear.heldout_rms
+        if h_law is not None and h_lin is not None and not h_law < h_lin:
+            # the held-out conditions are the judge: a law that does not predict them
+            # better than the linear one is not claimed
+            proposed = ", ".join(
+                f"{d['parameter']} {d['law']}" for d in laws.values() if d["law"] != "linear"
+            )
+            notes.append(
+                f"the joint fit with {proposed} does not predict the held-out conditions "
+                f"better than the linear laws (held-out RMS {h_law:.4g} vs {h_lin:.4g}): "
+                "the linear laws are kept"
+            )
+            for d in laws.values():
+                d["proposed"] = d["law"]
+                d["law"] = "linear"
+                d["coefs"] = fit_law(
+                    "linear", d["currents"], d["values"], floored_se(d["values"], d["stderr"])
+                )
+            joint, changed = linear, False
     else:
         joint = linear
     return StagedFit(par.family.name, fits, laws, joint, linear, changed, notes)
