@@ -155,3 +155,22 @@ def test_staged_fit_needs_three_levels():
     d = Discovery(model="bouc-wen-std", close_loop=False, heldout=False).fit(two)
     with pytest.raises(HystdiscError, match="2 current level.s.: the staged fit needs 3"):
         staged_fit(d.fit_data_, d.family_fits_["bouc-wen-std"])
+
+
+def test_cli_staged_prints_the_steps_and_keeps_a_linear_truth(tmp_path, capsys):
+    from pathlib import Path
+
+    from hystdisc.cli import main
+
+    csv = Path(__file__).resolve().parents[1] / "data_synth" / "driven_bouc-wen.csv"
+    out = tmp_path / "out"
+    code = main(["discover", str(csv), "--staged", "--no-effects", "--quiet", "--out", str(out)])
+    text = capsys.readouterr().out
+    assert code == 0
+    assert "Staged fit of bouc-wen" in text and "level 0.25 A (2 runs)" in text
+    res = Results.load(out / "results.json")
+    # the bundled set's truth is linear (alpha 0.5 + 1.5 i, c 0.5 + 0.6 i): kept linear
+    laws = res.current_laws["laws"]
+    assert {k: d["law"] for k, d in laws.items()} == {"alpha": "linear", "c": "linear"}
+    assert list(laws["alpha"]["coefficients"].values()) == pytest.approx([0.5, 1.5], rel=0.01)
+    assert list(laws["c"]["coefficients"].values()) == pytest.approx([0.5, 0.6], rel=0.01)

@@ -123,14 +123,15 @@ class StagedFit:
         lines.append(
             "  current laws (leave one level out; error in units of the level's interval):"
         )
-        head = "    parameter  " + "".join(f"{law:>12}" for law in LAWS) + "   chosen"
+        head = "    parameter  " + "".join(f"{law:>12}" for law in LAWS) + "  linear p   chosen"
         lines.append(head)
         for d in self.laws.values():
             cells = "".join(
                 f"{'-':>12}" if c is None else f"{c['z']:>12.3g}" for c in d["candidates"].values()
             )
             coefs = ", ".join(f"{k}={v:.4g}" for k, v in d["coefs"].items())
-            lines.append(f"    {d['parameter']:<10} {cells}   {d['law']} ({coefs})")
+            p = d["linear_p"]
+            lines.append(f"    {d['parameter']:<10} {cells}  {p:>8.2g}   {d['law']} ({coefs})")
         j, lin = self.joint, self.linear
         lines.append(
             "  joint fit with the chosen laws: RMS "
