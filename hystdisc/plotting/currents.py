@@ -21,10 +21,12 @@ LAW_TEXT = {
 
 def _laws_table(current_laws: Any) -> Mapping[str, Mapping]:
     """The ``laws`` table from a ``current_laws`` dict, a Results or a StagedFit."""
-    if hasattr(current_laws, "to_dict"):  # StagedFit
-        current_laws = current_laws.to_dict()
     if hasattr(current_laws, "current_laws"):  # Results
         current_laws = current_laws.current_laws or {}
+    elif hasattr(current_laws, "levels"):  # StagedFit
+        current_laws = current_laws.to_dict()
+    if "current_laws" in current_laws:  # a results.json dict
+        current_laws = current_laws["current_laws"] or {}
     return current_laws.get("laws", current_laws)
 
 
