@@ -565,8 +565,16 @@ class Discovery(BaseEstimator):
         self.declared_ = self.model is not None
         selected = self.family_fits_[self.family_]
         self.staged_ = None
-        if self.staged and distinct_currents(fd.currents).size >= MIN_STAGED_LEVELS:
+        n_levels = distinct_currents(fd.currents).size
+        if self.staged and n_levels >= MIN_STAGED_LEVELS:
             self.staged_ = staged_fit(fd, selected, self.max_nfev, self.heldout, say)
+        elif self.staged:
+            warnings.warn(
+                f"{dataset.source}: {n_levels} current level(s); the staged fit needs "
+                f"{MIN_STAGED_LEVELS} and did not run (fix: record runs at more currents)",
+                HystdiscWarning,
+                stacklevel=2,
+            )
         self.loop_: LoopResult | None = None
         if self.close_loop:
             say("closing the loop: residual -> catalogued effects")

@@ -367,6 +367,11 @@ def staged_fit(
             )
         joint = joint_fit(fd, par, family_fit.params, laws, chosen, max_nfev, heldout)
         h_law, h_lin = joint.heldout_rms, linear.heldout_rms
+        if h_law is None or h_lin is None:
+            notes.append(
+                "the joint fit with the chosen laws was not checked on held-out conditions "
+                "(held-out errors off or not available): the laws rest on the levels alone"
+            )
         if h_law is not None and h_lin is not None and not h_law < h_lin:
             # the held-out conditions are the judge: a law that does not predict them
             # better than the linear one is not claimed
