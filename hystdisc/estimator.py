@@ -68,6 +68,7 @@ from hystdisc.discovery import (
 )
 from hystdisc.errors import HystdiscError, HystdiscWarning
 from hystdisc.fitting import (
+    MIN_STAGED_LEVELS,
     FamilyParametrization,
     FamilySystemParametrization,
     FitData,
@@ -76,6 +77,7 @@ from hystdisc.fitting import (
     TermParametrization,
     apply_filter,
     predict_dataset,
+    staged_fit,
 )
 from hystdisc.models import FAMILIES, format_equation, get_family
 from hystdisc.registry import experiment_names, family_names, get_experiment
@@ -190,6 +192,10 @@ class Discovery(BaseEstimator):
     n_jobs : int, optional
         Threads for the independent fits (stage-1 shapes, stage-2 families); default: the
         usable CPUs, at most :data:`MAX_THREADS`. The results do not depend on it.
+    staged : bool
+        After the selection, the seed's flowchart (:mod:`hystdisc.fitting.staged`): the
+        selected family fitted at each current level, each current law chosen by leaving
+        one level out, the joint fit with the chosen laws (``staged_``; needs 3 levels).
 
     Attributes
     ----------
@@ -245,6 +251,10 @@ class Discovery(BaseEstimator):
         The accepted effects.
     final_admissibility_ : Admissibility
         The final model's admissibility (a loud warning when it fails).
+    staged_ : StagedFit or None
+        The staged fit (``staged=True`` and 3 current levels or more), else None; its
+        ``current_laws`` table is in ``results.json``. The final model keeps the linear
+        laws (the closing loop and ``predict`` work on it).
     results_ : Results
         The ``results.json`` contract.
 
@@ -277,6 +287,7 @@ class Discovery(BaseEstimator):
         input_hold: str = "cubic",
         single_current: bool = False,
         n_jobs: int | None = None,
+        staged: bool = False,
     ) -> None:
         self.experiment = experiment
         self.families = families
@@ -293,6 +304,7 @@ class Discovery(BaseEstimator):
         self.input_hold = input_hold
         self.single_current = single_current
         self.n_jobs = n_jobs
+        self.staged = staged
 
     # -- helpers
     def _sayer(self, progress: Callable[[str], None] | None) -> Callable[[str], None]:
@@ -641,6 +653,17 @@ class Discovery(BaseEstimator):
         )
         self.declared_ = self.model is not None
         selected = self.family_fits_[self.family_]
+        self.staged_ = None
+        n_levels = distinct_currents(fd.currents).size
+        if self.staged and n_levels >= MIN_STAGED_LEVELS:
+            self.staged_ = staged_fit(fd, selected, self.max_nfev, self.heldout, say)
+        elif self.staged:
+            warnings.warn(
+                f"{dataset.source}: {n_levels} current level(s); the staged fit needs "
+                f"{MIN_STAGED_LEVELS} and did not run (fix: record runs at more currents)",
+                HystdiscWarning,
+                stacklevel=2,
+            )
         self.loop_: LoopResult | None = None
         if self.close_loop:
             say("closing the loop: residual -> catalogued effects")

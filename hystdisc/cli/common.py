@@ -129,6 +129,13 @@ def add_discovery_options(p: argparse.ArgumentParser) -> None:
         action="store_true",
         help="skip the closing loop (residual -> catalogued effects)",
     )
+    p.add_argument(
+        "--staged",
+        action="store_true",
+        help="the seed's flowchart after the selection: the family fitted at each current "
+        "level (0 A first), each current law chosen (linear, quadratic, saturating) by "
+        "leaving one level out, the joint fit with the chosen laws (3 levels or more)",
+    )
 
 
 def discovery_options(args: argparse.Namespace) -> dict:
@@ -147,6 +154,7 @@ def discovery_options(args: argparse.Namespace) -> dict:
         "close_loop": not args.no_effects,
         "input_hold": args.input_hold,
         "single_current": args.single_current,
+        "staged": getattr(args, "staged", False),
     }
 
 

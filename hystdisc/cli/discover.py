@@ -100,6 +100,8 @@ def run(args: argparse.Namespace) -> int:
     json_path.parent.mkdir(parents=True, exist_ok=True)
     res.save(json_path, force=args.force)
     print(res.report())
+    if getattr(disc, "staged_", None) is not None:
+        print("\n" + disc.staged_.report())
     print(f"\nwrote {json_path}")
     if args.report:
         from hystdisc.report import write_report

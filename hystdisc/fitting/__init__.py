@@ -26,9 +26,11 @@ from hystdisc.fitting.parametrization import (
 )
 from hystdisc.fitting.predict import predict_dataset
 from hystdisc.fitting.simulate import simulate_entries, simulate_systems
+from hystdisc.fitting.staged import MIN_STAGED_LEVELS, StagedFit, staged_fit
 
 __all__ = [
     "apply_filter",
+    "MIN_STAGED_LEVELS",
     "FamilyParametrization",
     "FamilySystemParametrization",
     "FitData",
@@ -36,6 +38,7 @@ __all__ = [
     "OutputErrorFitter",
     "Parametrization",
     "StructuralParametrization",
+    "StagedFit",
     "SystemParametrization",
     "TermParametrization",
     "family_parametrization",
@@ -43,4 +46,5 @@ __all__ = [
     "predict_dataset",
     "simulate_entries",
     "simulate_systems",
+    "staged_fit",
 ]

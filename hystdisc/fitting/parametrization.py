@@ -117,8 +117,9 @@ class FamilyParametrization(Parametrization):
         specs: list[Param] = [
             p for p in self.family.params if p.name not in self.derived and p.name not in self.fixed
         ]
-        specs.append(RIG_PARAMS[0])  # k_s
-        if get_experiment(experiment).inertia_identifiable:
+        if "k_s" not in self.fixed:  # held, e.g., by the per-level fits of the laws
+            specs.append(RIG_PARAMS[0])  # k_s
+        if get_experiment(experiment).inertia_identifiable and "J" not in self.fixed:
             specs.append(RIG_PARAMS[1])  # J
         for e in self.effects:
             specs.extend(EFFECTS[e].params)

@@ -5,7 +5,7 @@ into and returns the :class:`~matplotlib.figure.Figure`; without one it opens a 
 figure. Nothing here calls ``plt.show()`` or changes ``rcParams``. One module per kind of
 figure: :mod:`~hystdisc.plotting.loops`, :mod:`~hystdisc.plotting.fits`,
 :mod:`~hystdisc.plotting.selection`, :mod:`~hystdisc.plotting.spectrum`,
-:mod:`~hystdisc.plotting.families`.
+:mod:`~hystdisc.plotting.families`, :mod:`~hystdisc.plotting.currents`.
 
 Examples
 --------
@@ -19,6 +19,7 @@ Examples
 >>> import matplotlib.pyplot as plt; plt.close(fig)
 """
 
+from hystdisc.plotting.currents import plot_current_laws
 from hystdisc.plotting.families import plot_family_comparison
 from hystdisc.plotting.fits import plot_fit, plot_runs
 from hystdisc.plotting.loops import loops_figure, plot_loops
@@ -28,6 +29,7 @@ from hystdisc.plotting.studies import plot_study
 
 __all__ = [
     "loops_figure",
+    "plot_current_laws",
     "plot_family_comparison",
     "plot_fit",
     "plot_inclusion",

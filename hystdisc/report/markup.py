@@ -19,6 +19,7 @@ SECTIONS: tuple[tuple[str, str], ...] = (
     ("loops", "Hysteresis loops"),
     ("families", "Family comparison"),
     ("parameters", "Parameters"),
+    ("current-laws", "Current laws (staged fit)"),
     ("correspondence", "Term correspondence (seed, section 5)"),
     ("selection", "Term selection (stage 1)"),
     ("closing", "Closing the loop"),

@@ -9,6 +9,7 @@ from pathlib import Path
 from hystdisc.data import Dataset, atomic_write_text
 from hystdisc.errors import HystdiscError
 from hystdisc.report.comparison import ComparisonSections
+from hystdisc.report.currents import CurrentSections
 from hystdisc.report.document import Document
 from hystdisc.report.markup import CSS, SECTIONS, esc, md_line
 from hystdisc.report.overview import OverviewSections
@@ -16,7 +17,7 @@ from hystdisc.report.signals import check_fitted
 from hystdisc.report.stages import StageSections
 
 
-class Report(Document, OverviewSections, ComparisonSections, StageSections):
+class Report(Document, OverviewSections, ComparisonSections, CurrentSections, StageSections):
     """The whole report: the document and every section (one method per section id)."""
 
 

@@ -207,6 +207,9 @@ def build_results(disc: Any, dataset: Any) -> Results:
         "selection_note": disc.selection_note_,
         "system_model": system_entry(final),
     }
+    staged = getattr(disc, "staged_", None)
+    if staged is not None:  # the seed's flowchart: per-level fits and current laws
+        data["current_laws"] = staged.to_dict(disc.fit_data_.names)
     if loop is not None:
         data.update(
             {

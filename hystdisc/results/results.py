@@ -153,6 +153,11 @@ class Results(Record):
     system_model : dict or None
         The final model of a system family (schema 4): ``family``, ``experiment``,
         ``effects`` and the parameter ``values``.
+    current_laws : dict or None
+        The staged fit (``discover --staged``): per-level fits, each law parameter's
+        per-level values with intervals, the candidate laws' held-out errors, the chosen
+        law and its coefficients, the joint fits (see
+        :meth:`hystdisc.fitting.StagedFit.to_dict`); None without it.
     extra : dict
         Keys this version does not know (kept on a round trip).
     """
@@ -197,6 +202,7 @@ class Results(Record):
     envelope: dict[str, Any] | None = None
     selection_note: str | None = None
     system_model: dict[str, Any] | None = None
+    current_laws: dict[str, Any] | None = None
     extra: dict[str, Any] = field(default_factory=dict, repr=False)
 
     # ----------------------------------------------------------------- JSON
