@@ -101,7 +101,8 @@ def pooled_errors(pred_csv: Path) -> tuple[float, float]:
 
 def full_set(files: list[str], work: Path, effects: bool) -> dict:
     out = work / "full"
-    args = ["discover", *files, "--rig", str(RIG), "--out", str(out), "--force"]
+    # the seed's flowchart too: per-current fits and the current laws (report section)
+    args = ["discover", *files, "--rig", str(RIG), "--out", str(out), "--force", "--staged"]
     if not effects:
         args.append("--no-effects")
     t0 = time.perf_counter()
