@@ -44,7 +44,7 @@ from hystdisc.fitting.laws import (
     law_names,
 )
 from hystdisc.fitting.output_error import OEFit, OutputErrorFitter
-from hystdisc.fitting.parametrization import FamilyParametrization
+from hystdisc.fitting.parametrization import FamilyParametrization, FamilySystemParametrization
 
 #: Current levels the staged fit needs (a law through two points is not judged).
 MIN_STAGED_LEVELS = 3
@@ -222,8 +222,15 @@ def level_parametrization(
     fixed.update({p: 0.0 for p in par.family.current_params})
     if shared:
         passive = {a for a, _ in par.family.current_laws.values()}
-        base = FamilyParametrization(par.family, par.experiment, dict(start), (), fixed, par.norm)
+        base = _family_par(par, start, fixed)
         fixed.update({n: float(start[n]) for n in base.names if n not in passive})
+    return _family_par(par, start, fixed)
+
+
+def _family_par(par, start: Mapping[str, float], fixed: dict):
+    """``par``'s family (term form or state-space) started at ``start`` with ``fixed``."""
+    if isinstance(par, FamilySystemParametrization):
+        return FamilySystemParametrization(par.family, par.experiment, dict(start), (), fixed)
     return FamilyParametrization(par.family, par.experiment, dict(start), (), fixed, par.norm)
 
 
@@ -338,7 +345,7 @@ def staged_fit(
         :func:`level_fits`).
     """
     par = family_fit.par
-    if not isinstance(par, FamilyParametrization):
+    if not isinstance(par, (FamilyParametrization, FamilySystemParametrization)):
         raise HystdiscError(
             "the staged fit starts from a family's own fit; fix: pass a FamilyParametrization fit"
         )
