@@ -491,6 +491,17 @@ class Discovery(BaseEstimator):
             best = OutputErrorFitter(fd, best.par, max_nfev=self.max_nfev).heldout_at(best)
         return best
 
+    def _decided_by_staged(self) -> dict[str, str]:
+        """Effects the staged fit decided: the current law of the hysteretic torque is
+        chosen there (``current_saturation`` is one of its outcomes, not a guess). When it
+        chose a law that is not linear, the loop keeps ``current_saturation`` as that law's
+        term form (a quadratic law is exactly ``i^2 z``)."""
+        if self.staged_ is None or self.staged_.changed:
+            return {}
+        laws = self.staged_.laws
+        chosen = ", ".join(f"{d['parameter']} {d['law']}" for d in laws.values())
+        return {"current_saturation": f"the staged fit chose the current laws ({chosen})"}
+
     def _stage1_shape(self, fit: OEFit) -> np.ndarray | None:
         """The stage-1 shape constants of the fitted family's hysteresis shape."""
         found = self.stage1_.get(FAMILY_SHAPE.get(fit.par.family.name))
@@ -677,6 +688,7 @@ class Discovery(BaseEstimator):
                 heldout=True,
                 progress=say,
                 envelope=self.envelope_,
+                decided=self._decided_by_staged(),
             )
         self.final_fit_ = selected if self.loop_ is None else self.loop_.fit
         self.effects_ = [] if self.loop_ is None else list(self.loop_.effects)

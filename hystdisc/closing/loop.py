@@ -396,6 +396,7 @@ def augment(
     progress: Callable[[str], None] | None = None,
     s0: np.ndarray | None = None,
     envelope: Envelope | None = None,
+    decided: dict[str, str] | None = None,
 ) -> LoopResult:
     """Diagnose, add the effects that improve BIC, and test the final residual.
 
@@ -452,6 +453,10 @@ def augment(
     out = LoopResult(base=fit, fit=fit)
     current = fit
     candidates, skipped = candidate_effects(fit, data)
+    # effects an earlier step already decided (e.g. the staged fit chose the current laws)
+    decided = dict(decided or {})
+    skipped += [{"name": c, "reason": decided[c]} for c in candidates if c in decided]
+    candidates = [c for c in candidates if c not in decided]
     out.skipped = skipped
     rejected: set[str] = set()
     steps: dict[str, dict] = {}
@@ -569,6 +574,7 @@ def close_loop(
     heldout: bool = True,
     progress: Callable[[str], None] | None = None,
     envelope: Envelope | None = None,
+    decided: dict[str, str] | None = None,
 ) -> LoopResult:
     """Close the loop on the fit of the selected (or declared) family.
 
@@ -596,6 +602,9 @@ def close_loop(
         Called with short progress messages.
     envelope : Envelope, optional
         The training envelope, for the admissibility of the refits.
+    decided : dict of str to str, optional
+        Effects an earlier step decided (name -> why): not candidates (e.g. the current
+        laws the staged fit chose decide ``current_saturation``).
 
     Returns
     -------
@@ -615,6 +624,7 @@ def close_loop(
             progress=progress,
             s0=s0,
             envelope=envelope,
+            decided=decided,
         )
     except (HystdiscError, np.linalg.LinAlgError, ValueError, FloatingPointError) as exc:
         name = getattr(getattr(fit.par, "family", None), "name", "the fit")
