@@ -15,6 +15,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from hystdisc import registry
 from hystdisc.closing import (
     EFFECT_BIC_MARGIN,
     assess_residual,
@@ -203,14 +204,21 @@ def _fake_fit(family, experiment="release", effects=(), ks=158.0, ks_lo=150.0):
 
 
 def _fake_data(currents, experiment="release"):
-    return SimpleNamespace(currents=np.asarray(currents, dtype=float), experiment=experiment)
+    return SimpleNamespace(
+        currents=np.asarray(currents, dtype=float),
+        experiment=experiment,
+        exp=registry.get_experiment(experiment),
+    )
 
 
 def test_candidates_follow_the_family_and_the_data():
     five = _fake_data([0, 0.25, 0.5, 0.75, 1.0])
     cand, skipped = candidate_effects(_fake_fit("dahl"), five)
-    assert cand == list(EFFECTS)  # Dahl lacks every catalogued effect
-    assert skipped == []
+    # Dahl lacks every catalogued effect; a release rig records one channel (no delay)
+    assert cand == [e for e in EFFECTS if e != "channel_delay"]
+    assert skipped == [
+        {"name": "channel_delay", "reason": "a release experiment records one channel"}
+    ]
     cand, skipped = candidate_effects(_fake_fit("bingham"), five)
     assert cand == [
         "quadratic_damping",
