@@ -28,10 +28,11 @@ TRUTH = {
     "c1_b": 3.0,
     "k0": 0.3,
     "k1": 0.5,
+    "A": 20.0,
     "beta": 8.0,
-    "gamma": 12.0,
     "n": 2.0,
 }
+GAMMA = 12.0  # A - beta (z saturates at 1)
 DRIVES = ["0.2@0.5", "0.4@1.0", "0.1@2.0", "0.3@1.5"]
 CURRENTS = (0.0, 0.25, 0.5, 0.75, 1.0)
 
@@ -41,7 +42,7 @@ def _reference(p, i, t, x, v):
     al = p["alpha_a"] + p["alpha_b"] * i
     c0 = p["c0_a"] + p["c0_b"] * i
     c1 = p["c1_a"] + p["c1_b"] * i
-    b, g, n = p["beta"], p["gamma"], p["n"]
+    b, g, n = p["beta"], p["A"] - p["beta"], p["n"]
 
     def rhs(s, state):
         y, z = state
@@ -100,6 +101,7 @@ def test_identifiable_parameters_within_five_percent(spencer_fit):
         assert abs(fit.params[k] - v) < 0.05 * abs(v), (k, fit.params[k], v)
         lo, hi = fit.ci95[k]
         assert lo < v < hi or abs(fit.params[k] - v) < 0.02 * abs(v), (k, lo, hi)
+    assert abs(fit.params["gamma"] - GAMMA) < 0.05 * GAMMA
 
 
 def test_results_round_trip_and_predict_the_system_model(spencer_fit, tmp_path):

@@ -290,7 +290,9 @@ class OutputErrorFitter:
             with np.errstate(all="ignore"):
                 r0 = self.residuals(p0, w_full)
                 coarse.residuals(p0, w_bulk)
-            if sum(w_full) < BULK_MIN_GAIN * sum(w_bulk):
+            # (a state-space model counts no work: it is fitted on every sample, since its
+            # decimated fit was measured to wander off on the filtered MR records)
+            if not sum(w_bulk) or sum(w_full) < BULK_MIN_GAIN * sum(w_bulk):
                 coarse = None
         if coarse is not None:
             try:

@@ -35,7 +35,7 @@ SYSTEM_ATOL = 1e-13
 #: Steps of the error-controlled integrator per measured sample interval while fitting: a
 #: candidate whose dynamics need more (a series mass driven towards zero, a stiff wheel)
 #: counts as diverged, and the optimizer backs away.
-SYSTEM_MAX_STEPS = 50
+SYSTEM_MAX_STEPS = 200
 #: What a diverged prediction is replaced by.
 DIVERGED = 1e6
 

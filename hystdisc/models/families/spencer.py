@@ -14,6 +14,8 @@ the Bouc-Wen element and ``z`` (both start at 0: the node starts with the motion
 
 Identifiability. ``z`` is normalized to saturate at 1 (``A = beta + gamma``, as the
 standard Bouc-Wen family): Spencer's ``A`` and the scale of ``alpha`` are one direction.
+The free shape parameters are ``A > 0`` and ``beta`` (``gamma = A - beta`` is reported):
+``A > 0`` keeps ``z`` bounded, which free ``beta`` and ``gamma`` would not.
 Spencer's ``x0`` only adds the constant force ``-k1 x0``, which data with their mean
 removed cannot tell from zero: it is left out. With ``c1`` much larger than ``c0`` the
 model is standard Bouc-Wen (``y`` stands still): then ``c1`` is not determined and
@@ -110,13 +112,16 @@ _PARAMS = """
     c1_b      N*m*s/(rad*A)  0      BIG    2.0      its current dependence
     k0        N*m/rad        0      BIG    0.5      stiffness beside the Bouc-Wen element
     k1        N*m/rad        0      BIG    0.0      accumulator stiffness (driven only)
-    beta      1/rad          -BIG   BIG    5        shape (x_dot |z|^n term)
-    gamma     1/rad          -BIG   BIG    15       shape (|x_dot| z |z|^(n-1) term)
+    A         1/rad          1e-9   BIG    20       initial slope of z (z_sat = 1: A = beta + gamma)
+    beta      1/rad          -BIG   BIG    5        shape (x_dot |z|^n term; gamma = A - beta)
     n         -              1e-4   10     2        exponent
 """
 
 #: Ratios c1 / c0 of the starts from a Bouc-Wen fit; 13.5 is Spencer et al.'s (283/21).
 START_RATIOS = (3.0, 13.5, 60.0)
+#: A Bouc-Wen shape with |beta| or |gamma| above this many times ``A = beta + gamma`` is a
+#: sharp reversal: Spencer is also started from the symmetric shape.
+SHARP_SHAPE = 10.0
 
 
 class Spencer(SystemFamily):
@@ -125,7 +130,7 @@ class Spencer(SystemFamily):
     name = "spencer"
     title = "Spencer (Bouc-Wen with an internal dashpot)"
     params = param_table(_PARAMS)
-    normalization = "z_sat = 1 (A = beta + gamma)"
+    normalization = "z_sat = 1 (gamma = A - beta)"
     current_params = ("alpha_b", "c0_b", "c1_b")
     current_laws = {"alpha": ("alpha_a", "alpha_b"), "c0": ("c0_a", "c0_b"), "c1": ("c1_a", "c1_b")}
     #: Parameters a release or forced rig does not have (k1 is the rig spring there).
@@ -143,10 +148,10 @@ class Spencer(SystemFamily):
     def block(self, p: Mapping[str, float], current: float) -> np.ndarray:
         """The family's part of the parameter vector at ``current`` (see the module)."""
         i = float(current)
-        b, g = p["beta"], p["gamma"]
+        b, g = p["beta"], p["A"] - p["beta"]  # z saturates at 1: gamma = A - beta
         return np.array(
             [
-                b + g,  # A: z saturates at 1
+                p["A"],
                 0.0,
                 -b,
                 0.0,
@@ -163,15 +168,15 @@ class Spencer(SystemFamily):
     def derived(self, p: Mapping[str, float]) -> dict[str, float]:
         """Combinations the data identify when ``c1`` is not: the post-yield damping
         ``c0 c1 / (c0 + c1)`` and the yield torque ``alpha c1 / (c0 + c1)``, at 0 A
-        (``_0``) and 1 A (``_1``); and ``A = beta + gamma``.
+        (``_0``) and 1 A (``_1``); and ``gamma = A - beta`` (``z`` saturates at 1).
 
         Examples
         --------
         >>> d = SPENCER.derived(SPENCER.defaults())
-        >>> round(d["c_post_0"], 4), round(d["alpha_yield_1"], 4)
-        (0.4545, 1.7284)
+        >>> round(d["c_post_0"], 4), round(d["alpha_yield_1"], 4), d["gamma"]
+        (0.4545, 1.7284, 15.0)
         """
-        out = {"A": p["beta"] + p["gamma"]}
+        out = {"gamma": p["A"] - p["beta"]}
         for i in (0, 1):
             c0 = p["c0_a"] + p["c0_b"] * i
             c1 = p["c1_a"] + p["c1_b"] * i
@@ -196,24 +201,32 @@ class Spencer(SystemFamily):
         True
         """
         out = []
+        A = max(base["beta"] + base["gamma"], 1e-6)
+        # a Bouc-Wen fit to a sharp reversal has |beta|, |gamma| >> A (z snaps back when the
+        # motion reverses, a stiff rate): in Spencer's model the internal dashpot makes that
+        # reversal, so such a fit starts Spencer from the symmetric shape beta = gamma = A/2
+        shapes = [("", base["beta"], base["n"])]
+        if max(abs(base["beta"]), abs(base["gamma"])) > SHARP_SHAPE * A:
+            shapes = [(", beta = gamma, n = 2", A / 2, 2.0)]  # Spencer et al.'s shape
         for m in START_RATIOS:
             s = (1.0 + m) / m  # c0 c1/(c0+c1) = c_bw and alpha c1/(c0+c1) = alpha_bw
             c0a, c0b = base["c_1"] * s, base["c_2"] * s
             floor = 1e-3 * max(c0a + c0b, 1e-12)  # a node dashpot is never 0
-            start = {
-                "alpha_a": base["alpha_1"] * s,
-                "alpha_b": base["alpha_2"] * s,
-                "c0_a": c0a,
-                "c0_b": c0b,
-                "c1_a": max(m * c0a, floor),
-                "c1_b": m * c0b,
-                "k0": 0.0,
-                "k1": base.get("k_s", 0.0),
-                "beta": base["beta"] * s,
-                "gamma": base["gamma"] * s,
-                "n": base["n"],
-            }
-            out.append((f"c1/c0 = {m:g}", start))
+            for label, beta, n in shapes:
+                start = {
+                    "alpha_a": base["alpha_1"] * s,
+                    "alpha_b": base["alpha_2"] * s,
+                    "c0_a": c0a,
+                    "c0_b": c0b,
+                    "c1_a": max(m * c0a, floor),
+                    "c1_b": m * c0b,
+                    "k0": 0.0,
+                    "k1": base.get("k_s", 0.0),
+                    "A": A * s,
+                    "beta": beta * s,
+                    "n": n,
+                }
+                out.append((f"c1/c0 = {m:g}{label}", start))
         return out
 
     def equations(self) -> str:
