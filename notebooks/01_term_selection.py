@@ -64,8 +64,7 @@ print(truth)
 print(truth.to_terms().equations())
 data = generate(truth, currents=CURRENTS, duration=DURATION, noise=1e-3, seed=1)
 fig, ax = plt.subplots(figsize=(8, 3))
-plot_runs(data, ax=ax);
-
+plot_runs(data, ax=ax)
 # %% [markdown]
 # ## Stage 1 on default settings
 #
@@ -97,8 +96,7 @@ for shape, fit in d.stage1_.items():
 # %%
 shape = d.discovered_shape_
 fig, axes = plt.subplots(2, 1, figsize=(9, 6), sharex=True, height_ratios=[3, 1.4])
-plot_selection_path(d.stage1_[shape].path, ax=axes, title=f"STLSQ path, shape '{shape}'");
-
+plot_selection_path(d.stage1_[shape].path, ax=axes, title=f"STLSQ path, shape '{shape}'")
 # %% [markdown]
 # ## Reading the path, and fixed thresholds
 #
@@ -156,8 +154,7 @@ for name, terms in libraries.items():
 # %%
 de = Discovery(ensemble=True, shapes=(shape,), **quick).fit(data)
 fig, ax = plt.subplots(figsize=(6, 3.2))
-plot_inclusion(de.stage1_[shape].inclusion, ax=ax, title=f"inclusion, shape '{shape}'");
-
+plot_inclusion(de.stage1_[shape].inclusion, ax=ax, title=f"inclusion, shape '{shape}'")
 # %% [markdown]
 # ## More noise
 #

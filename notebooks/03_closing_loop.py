@@ -126,8 +126,7 @@ plot_residual_spectrum(before, fs, ax=ax, label="dahl", color=FAMILY_COLORS["dah
 plot_residual_spectrum(
     after, fs, ax=ax, noise_std=d.noise_std_, label="dahl + effects", color=FAMILY_COLORS["final"]
 )
-ax.set_title(f"whiteness p after: {res.residual.whiteness_p:.3g}");
-
+ax.set_title(f"whiteness p after: {res.residual.whiteness_p:.3g}")
 # %% [markdown]
 # And in the loops at 1 A: the accepted term steepens the viscous slope, which is the
 # seed's "linear slope of the hysteresis".
@@ -135,8 +134,7 @@ ax.set_title(f"whiteness p after: {res.residual.whiteness_p:.3g}");
 # %%
 loops = model_loops(d, runs=[2], fits=["dahl", "final"])
 fig, axes = plt.subplots(1, 2, figsize=(11, 3.8), layout="constrained")
-loops_figure(loops, axes=axes, title="1 A: data (grey), Dahl and Dahl + effect");
-
+loops_figure(loops, axes=axes, title="1 A: data (grey), Dahl and Dahl + effect")
 # %% [markdown]
 # ## When no catalogued effect explains the residual
 #
@@ -148,9 +146,7 @@ loops_figure(loops, axes=axes, title="1 A: data (grey), Dahl and Dahl + effect")
 
 # %%
 clean = generate(Model("dahl"), currents=CURRENTS, duration=DURATION, noise=1e-3, seed=12)
-runs = [
-    Run(r.name, r.t, r.theta + 2e-3 * np.sin(2 * np.pi * 8.0 * r.t), r.current) for r in clean
-]
+runs = [Run(r.name, r.t, r.theta + 2e-3 * np.sin(2 * np.pi * 8.0 * r.t), r.current) for r in clean]
 shaken = Dataset(runs, "release", "dahl data + 8 Hz vibration")
 ds = Discovery(model="dahl", heldout=False).fit(shaken)
 shaken_res = ds.results_
@@ -164,7 +160,7 @@ plot_residual_spectrum(
     noise_std=ds.noise_std_,
     dominant_hz=shaken_res.residual.dominant_hz,
     label="final residual",
-);
+)
 
 # %% [markdown]
 # ## Summary

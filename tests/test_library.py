@@ -55,6 +55,11 @@ def test_transform_values_by_hand():
         "theta^3": [0.125, -1.0],
         "1": [1.0, 1.0],
         "i^2*theta_dot": [-4.5, 0.0],
+        # the library evaluates the shear-thinning term at m = 0.5, sign smoothed by 1e-3
+        "sign(theta_dot)*|theta_dot|^m": [
+            -2.0 * (4.0 + 1e-6) ** -0.25,
+            3e-4 * (9e-8 + 1e-6) ** -0.25,
+        ],
     }
     assert set(F) == set(expected)
     for name, values in expected.items():

@@ -32,6 +32,8 @@ FAMILY_COLORS = {
     "lugre": "tab:red",
     "bouc-wen": "tab:green",
     "bouc-wen-std": "tab:olive",
+    "spencer": "tab:cyan",
+    "tanh": "tab:pink",
     "discovered": "tab:brown",
     "final": "tab:orange",
 }

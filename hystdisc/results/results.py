@@ -306,7 +306,10 @@ class Results(Record):
         HystdiscError
             When there is no such fit or its model is malformed.
         """
-        rec = self.system_model if family is None else self.families[family].system
+        try:
+            rec = self.system_model if family is None else self.families[family].system
+        except KeyError:
+            rec = None  # term_model says what is missing
         if not rec:
             return self.term_model(family)
         from hystdisc.registry import get_family

@@ -153,4 +153,5 @@ def test_rig_defaults_and_a_bare_current():
         "fs": 100.0,
         "path": "r",
         "name": "7",
+        "filter": None,
     }
