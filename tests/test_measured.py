@@ -95,16 +95,17 @@ def test_predict_starts_a_mid_motion_record_in_its_own_state(benchmark_outcome, 
 
 
 def test_mr_damper_trained_on_two_tests_predicts_a_third(data_dir):
-    """Discover on 10 mm/1 Hz and 25 mm/0.25 Hz (10 files, 0-1 A), predict 5 mm/3 Hz:
-    reported (benchmarks/results/mr_damper.md) bouc-wen-std, fit RMS 79.1 N, held-out NRMSE
-    16.5 % against 30.3 % for the Bingham fit of the same run."""
+    """Discover on 10 mm/1 Hz and 25 mm/0.25 Hz (10 files, 0-1 A, the authors' filter
+    declared in the rig file), predict 5 mm/3 Hz: measured (issue 15) spencer selected, fit
+    RMS 51.0 N (bouc-wen-std 51.9 N), NRMSE on the unseen test 10.9 % against 21.6 % for
+    the Bingham fit of the same run."""
     folder = data_dir / "utfsm_mr_damper"
     if not folder.is_dir():
         pytest.skip(f"{folder} is missing")
     out = mrd.subset_validation(folder)
-    assert out["family"] == "bouc-wen-std"
-    assert out["fit_rms"]["bouc-wen-std"] < 82.0
-    assert min(out["fit_rms"].values()) == out["fit_rms"]["bouc-wen-std"]
-    assert out["model"][1] < 0.18
-    assert out["bingham"][1] > 0.28
+    assert out["family"] in ("spencer", "bouc-wen-std", "lugre")
+    assert out["fit_rms"][out["family"]] < 56.0
+    assert out["fit_rms"]["bingham"] > 1.5 * out["fit_rms"][out["family"]]
+    assert out["model"][1] < 0.12
+    assert out["bingham"][1] > 0.19
     assert out["model"][1] < 0.6 * out["bingham"][1]

@@ -195,8 +195,9 @@ class Spencer(SystemFamily):
         --------
         >>> bw = {"alpha_1": 1.0, "alpha_2": 2.0, "c_1": 0.5, "c_2": 0.5, "beta": 5.0,
         ...       "gamma": 15.0, "n": 2.0, "k_s": 0.0}
-        >>> [label for label, _ in SPENCER.starts(bw)]
-        ['c1/c0 = 3', 'c1/c0 = 13.5', 'c1/c0 = 60']
+        >>> [label for label, _ in SPENCER.starts(bw)]  # doctest: +NORMALIZE_WHITESPACE
+        ['c1/c0 = 3, beta = gamma, n = 2', 'c1/c0 = 13.5, beta = gamma, n = 2', 'c1/c0 = 13.5',
+         'c1/c0 = 60, beta = gamma, n = 2']
         >>> SPENCER.starts(bw)[1][1]["c1_a"] > SPENCER.starts(bw)[1][1]["c0_a"]
         True
         """
@@ -205,13 +206,16 @@ class Spencer(SystemFamily):
         # a Bouc-Wen fit to a sharp reversal has |beta|, |gamma| >> A (z snaps back when the
         # motion reverses, a stiff rate): in Spencer's model the internal dashpot makes that
         # reversal, so such a fit starts Spencer from the symmetric shape beta = gamma = A/2
-        shapes = [("", base["beta"], base["n"])]
-        if max(abs(base["beta"]), abs(base["gamma"])) > SHARP_SHAPE * A:
-            shapes = [(", beta = gamma, n = 2", A / 2, 2.0)]  # Spencer et al.'s shape
+        # Spencer et al.'s shape (beta = gamma, n = 2) at every ratio; the Bouc-Wen fit's
+        # own shape at the published ratio unless it is sharp
+        sharp = max(abs(base["beta"]), abs(base["gamma"])) > SHARP_SHAPE * A
         for m in START_RATIOS:
             s = (1.0 + m) / m  # c0 c1/(c0+c1) = c_bw and alpha c1/(c0+c1) = alpha_bw
             c0a, c0b = base["c_1"] * s, base["c_2"] * s
             floor = 1e-3 * max(c0a + c0b, 1e-12)  # a node dashpot is never 0
+            shapes = [(", beta = gamma, n = 2", A / 2, 2.0)]
+            if m == START_RATIOS[1] and not sharp:
+                shapes.append(("", base["beta"], base["n"]))
             for label, beta, n in shapes:
                 start = {
                     "alpha_a": base["alpha_1"] * s,
