@@ -313,10 +313,15 @@ def report(
             lines.append(
                 f"| {r['test']} | {fam} | {r['model'][1]:.1%} | {cells} | {r['cpu']:.0f} |"
             )
-        mean = {k: np.mean([r[k][1] for r in rows if k in r]) for k in ["model", *fam_names]}
-        cells = " | ".join(f"{mean[f]:.1%}" for f in fam_names)
+        # a family the folds did not compare (--fold-families) has no mean
+        mean = {
+            k: np.mean([r[k][1] for r in rows if k in r])
+            for k in ["model", *fam_names]
+            if any(k in r for r in rows)
+        }
+        cells = " | ".join(f"{mean[f]:.1%}" if f in mean else "-" for f in fam_names)
         lines.append(f"| mean | | **{mean['model']:.1%}** | {cells} | |")
-        best = min(fam_names, key=lambda f: mean[f])
+        best = min((f for f in fam_names if f in mean), key=lambda f: mean[f])
         lines += [
             "",
             f"Mean leave-one-condition-out NRMSE of the final model {mean['model']:.1%}; best "
