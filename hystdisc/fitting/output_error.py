@@ -26,7 +26,7 @@ from scipy.interpolate import CubicSpline
 from hystdisc.errors import HystdiscError
 from hystdisc.fitting.data import FitData
 from hystdisc.fitting.lm import levenberg_marquardt
-from hystdisc.fitting.parametrization import Parametrization
+from hystdisc.fitting.parametrization import Parametrization, SystemParametrization
 from hystdisc.models import TermModel
 from hystdisc.stats import bic as _bic
 
@@ -120,9 +120,8 @@ class OEFit:
     def is_system(self) -> bool:
         """The fitted model is a state-space family's (no term form, not even a term part
         around a structural effect)."""
-        if getattr(self.par, "rigid_terms", None) is not None:
-            return False
-        return not isinstance(self.model, TermModel)
+        # decided by the parametrization's kind: no model needs to be built for it
+        return isinstance(self.par, SystemParametrization) and not hasattr(self.par, "rigid_terms")
 
     @property
     def term_part(self) -> TermModel:

@@ -87,6 +87,14 @@ def migrate(data: dict) -> dict:
     return {"schema_version": SCHEMA_VERSION, **rest}
 
 
+def _no_model(family: str | None, exc: Exception) -> HystdiscError:
+    """The one-line error of a results file without a usable model for ``family``."""
+    return HystdiscError(
+        f"results: no usable model for {family or 'the selected family'} ({exc}); fix: "
+        "rerun hystdisc discover"
+    )
+
+
 @dataclass
 class Results(Record):
     """The record of a discovery (``results.json``; ``Discovery.results_``).
@@ -291,10 +299,7 @@ class Results(Record):
                 raise KeyError("term_model")
             return rec.to_term_model()
         except (KeyError, TypeError, ValueError, AttributeError, OverflowError) as exc:
-            raise HystdiscError(
-                f"results: no usable model for {family or 'the selected family'} ({exc}); fix: "
-                "rerun hystdisc discover"
-            ) from None
+            raise _no_model(family, exc) from None
 
     def simulation_model(self, family: str | None = None):
         """The fitted model as the simulator takes it: the term form, or a system
@@ -320,10 +325,7 @@ class Results(Record):
             values = {k: float(v) for k, v in rec["values"].items()}
             system.check(values)
         except (KeyError, TypeError, ValueError, AttributeError, HystdiscError) as exc:
-            raise HystdiscError(
-                f"results: no usable model for {family or 'the selected family'} ({exc}); fix: "
-                "rerun hystdisc discover"
-            ) from None
+            raise _no_model(family, exc) from None
         return system, values
 
     @property

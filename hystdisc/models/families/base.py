@@ -68,10 +68,13 @@ class SystemFamily(Family):
 
     is_system = True
 
-    def system(self, experiment: str, effects: tuple[str, ...] = ()):  # pragma: no cover
-        """The :class:`~hystdisc.models.system.StateSpaceModel` of this family for an
-        experiment type, with the torque terms of ``effects`` added."""
-        raise NotImplementedError
+    def system(self, experiment: str, effects: tuple[str, ...] = ()):
+        """The :class:`~hystdisc.models.system.FamilySystem` of this family for an
+        experiment type, with the torque terms of ``effects`` added (the family's compiled
+        ``driven_*``/``mech_*`` functions, states and :meth:`block`)."""
+        from hystdisc.models.system import FamilySystem  # system.py builds on families
+
+        return FamilySystem(self, experiment, effects)
 
     def derived(self, p: Mapping[str, float]) -> dict[str, float]:
         """Identifiable combinations of the parameters ``p`` (none by default)."""

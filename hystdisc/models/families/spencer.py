@@ -48,7 +48,7 @@ import numpy as np
 from hystdisc.models.compiled import N_BASE, term_rate, term_torque
 from hystdisc.models.families.base import SystemFamily
 from hystdisc.models.params import param_table
-from hystdisc.models.system import EPS_AT, FAMILY_AT, J_AT, KS_AT, FamilySystem
+from hystdisc.models.system import EPS_AT, FAMILY_AT, J_AT, KS_AT
 
 # the family block: the 5 hysteresis coefficients of term_rate (A, 0, -beta, 0, -gamma),
 # n, alpha, c0, c1, k0, k1 (current folded in)
@@ -141,9 +141,6 @@ class Spencer(SystemFamily):
     driven_output = staticmethod(_driven_output)
     mech_rate = staticmethod(_mech_rate)
     mech_output = staticmethod(_mech_output)
-
-    def system(self, experiment: str, effects: tuple[str, ...] = ()) -> FamilySystem:
-        return FamilySystem(self, experiment, effects)
 
     def block(self, p: Mapping[str, float], current: float) -> np.ndarray:
         """The family's part of the parameter vector at ``current`` (see the module)."""
