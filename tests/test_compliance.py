@@ -42,10 +42,12 @@ def wheel_fit(tmp_path_factory):
 
 def test_the_effect_is_structural():
     eff = EFFECTS["series_compliance"]
-    assert eff.structural and eff.terms == () and eff.experiments == ("release",)
+    assert eff.structural and eff.terms == () and eff.experiments == ("release", "driven")
     bounds = {p.name: (p.lower, p.upper) for p in eff.params}
     assert bounds["k_w"][0] > 0 and bounds["m_w"][0] > 0 and bounds["c_w"][0] == 0
-    with pytest.raises(Exception, match="series_compliance is built for release"):
+    with pytest.raises(
+        Exception, match="series_compliance is built for release, driven experiments, not forced"
+    ):
         generate(Model("dahl", effects={"series_compliance": WHEEL}), "forced", duration=1.0)
 
 

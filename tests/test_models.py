@@ -15,7 +15,7 @@ from hystdisc import registry
 from hystdisc.errors import HystdiscError
 from hystdisc.models import FAMILIES, Model, TermModel
 from hystdisc.models.system import TermSystem
-from hystdisc.models.wheel import BeamOnCompliantWheel
+from hystdisc.models.wheel import BeamOnCompliantWheel, TermsOnCompliantMount
 from hystdisc.simulation import simulate_driven, simulate_forced, simulate_release
 from hystdisc.simulation.ode import simulate_system
 
@@ -73,6 +73,53 @@ def test_stiff_wheel_is_the_seed_rig():
     out = simulate_system(model, T, model.initial_state(theta=0.3), vals, current=0.5)
     rig = simulate_release(Model("bouc-wen"), T, current=0.5, theta0=0.3)
     assert np.max(np.abs(out.x["theta"] - rig.theta)) < 2e-3 * 0.3
+
+
+def test_compliant_mount_matches_solve_ivp():
+    """The driven damper behind a mount: the mount's equations written out here, the
+    damper's torque and rate from the term model's own (numpy) evaluation."""
+    values = {"alpha_1": 0.4, "alpha_2": 1.2, "c_1": 0.3, "c_2": 0.5, "beta": 4.0}
+    values |= {"gamma": 12.0, "n": 2.0, "k_s": 50.0}
+    tm = Model("bouc-wen-std", values).to_terms()
+    mount = {"m_w": 0.05, "k_w": 500.0, "c_w": 3.0}
+    model = TermsOnCompliantMount(tm)
+    om, amp, current = 2 * np.pi * 2.0, 0.3, 0.5
+
+    th, w = amp * np.sin(om * T), amp * om * np.cos(om * T)
+
+    def rhs(t, s):
+        d, v, z = s
+        x, xd = np.interp(t, T, th), np.interp(t, T, w)  # the simulator's linear inputs
+        force = float(tm.eval_torque(x - d, v, z, current))
+        acc = (mount["k_w"] * d + mount["c_w"] * (xd - v) - force) / mount["m_w"]
+        return [xd - v, acc, float(tm.eval_rate(v, z))]
+
+    ours = simulate_system(
+        model,
+        T,
+        model.initial_state(),
+        mount,
+        current,
+        {"theta": th, "theta_dot": w},
+        rtol=1e-10,
+        atol=1e-13,
+    )
+    ref = solve_ivp(
+        rhs, (T[0], T[-1]), [0.0, 0.0, 0.0], method="DOP853", t_eval=T, rtol=1e-12, atol=1e-14
+    )
+    assert ref.success
+    force = tm.eval_torque(th - ref.y[0], ref.y[1], ref.y[2], current)
+    assert np.max(np.abs(ours.y - force)) < 1e-6 * np.max(np.abs(force))
+    # the mount really deflects: a few per cent of the motion
+    assert np.ptp(ours.x["d"]) > 0.01 * np.ptp(th)
+    # a very stiff mount is the damper driven directly
+    stiff = {"m_w": 1e-3, "k_w": 1e7, "c_w": 2e2}
+    rigid = simulate_driven(tm, T, current=current, theta=th, theta_dot=w)
+    out = simulate_system(
+        model, T, model.initial_state(), stiff, current, {"theta": th, "theta_dot": w}
+    )
+    late = T > 0.2  # after the mount's start-up from rest
+    assert np.max(np.abs(out.y - rigid.torque)[late]) < 2e-3 * np.max(np.abs(rigid.torque))
 
 
 @pytest.mark.parametrize("family", registry.term_family_names())

@@ -48,7 +48,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "a model or rig parameter, e.g. k_s=158 (repeatable; or comma separated)",
         "add a catalogued effect, e.g. coulomb or coulomb:f_c=0.5 (repeatable); the beam "
         "on a compliant wheel (release): series_compliance:k_w=900,c_w=3,m_w=0.3 (per unit "
-        "beam inertia)",
+        "beam inertia); a driven damper behind a compliant mount: the same effect, with "
+        "k_w, c_w, m_w in the units of the force and motion",
     )
     p.add_argument("--currents", metavar="LIST", help="coil currents in A, e.g. 0,0.25,0.5,0.75,1")
     release, *others = registry.experiment_names()

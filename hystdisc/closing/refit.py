@@ -99,7 +99,7 @@ def candidate_effects(fit: OEFit, data: FitData) -> tuple[list[str], list[dict]]
                 )
             elif any(EFFECTS[e].structural for e in par.effects):
                 reason = "the model already has a structural effect"
-            elif not has_spring(fit):
+            elif not exp.motion_imposed and not has_spring(fit):
                 reason = "no rig spring (k_s is not significantly above 0): no beam to start from"
         elif not eff.terms:  # a measurement effect: it needs two recorded channels
             if not (exp.motion_imposed or exp.has_input):

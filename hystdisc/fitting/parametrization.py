@@ -351,11 +351,11 @@ class StructuralParametrization(FamilyParametrization, SystemParametrization):
                 f"{', '.join(self.effects) or 'none'}; fix: add exactly one"
             )
         self.structure = EFFECTS[found[0]]
-        self.system = self.structure.system_model(self.rigid_terms(self.x0))
+        self.system = self.structure.system_model(self.rigid_terms(self.x0), self.experiment)
 
     def model(self, x: np.ndarray):
         p = self.params(x)
-        system = self.structure.system_model(self.rigid_terms(x))
+        system = self.structure.system_model(self.rigid_terms(x), self.experiment)
         return (system, {q.name: p[q.name] for q in self.structure.params})
 
     def terms(self, x: np.ndarray) -> TermModel:

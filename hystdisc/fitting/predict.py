@@ -97,7 +97,7 @@ def predict_dataset(
     if isinstance(tm, TermModel):
         delay = float(tm.delay)
     else:
-        delay = float(tm[1].get("tau_d", 0.0))
+        delay = tm[0].output_delay(tm[1])
     preds = _predict(tm, runs, ders, exp, input_hold)
     return [
         measured_output(r.t, y, delay, w) for r, y, w in zip(runs, preds, out_windows, strict=True)

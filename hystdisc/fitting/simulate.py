@@ -192,7 +192,7 @@ def simulate_systems(
             y, bad = np.full(data.t[r].size, np.nan), True
         if bad:
             y = np.where(np.isfinite(y), y, DIVERGED)
-        tau = float(values.get("tau_d", 0.0))
+        tau = model.output_delay(values)
         out.append(measured_output(data.t[r], y, tau, windows[r], steps[r]))
         if status_out is not None:
             status_out.append(bad)

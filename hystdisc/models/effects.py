@@ -66,9 +66,9 @@ class Effect:
         """The effect adds states (a state-space model realizes it), not torque terms."""
         return bool(self.system)
 
-    def system_model(self, terms):
+    def system_model(self, terms, experiment: str = "release"):
         """The state-space model of a structural effect around ``terms`` (the rest of the
-        model in term form: damper, rig spring, term effects).
+        model in term form: damper, rig spring, term effects) for ``experiment``.
 
         Examples
         --------
@@ -79,7 +79,7 @@ class Effect:
         if not self.system:
             raise ValueError(f"{self.name} is not a structural effect")
         module, _, attr = self.system.partition(":")
-        return getattr(importlib.import_module(module), attr)(terms)
+        return getattr(importlib.import_module(module), attr)(terms, experiment)
 
     exponents: tuple[tuple[str, str], ...] = ()
 
@@ -217,22 +217,46 @@ CHANNEL_DELAY = Effect(
 SERIES_COMPLIANCE = Effect(
     "series_compliance",
     (
-        Param("m_w", "kg*m^2 per unit J", 1e-9, BIG, 0.2, "wheel inertia (series mass)"),
-        Param("k_w", "N*m/rad per unit J", 1e-9, BIG, 5000.0, "wheel (tyre) stiffness"),
-        Param("c_w", "N*m*s/rad per unit J", 0.0, BIG, 5.0, "wheel (tyre) damping"),
+        Param(
+            "m_w",
+            "kg*m^2 per unit J (release); kg (driven)",
+            1e-9,
+            BIG,
+            0.2,
+            "wheel inertia, or the damper end's mass (series mass)",
+        ),
+        Param(
+            "k_w",
+            "N*m/rad per unit J (release); N/m (driven)",
+            1e-9,
+            BIG,
+            5000.0,
+            "wheel (tyre) or mount stiffness",
+        ),
+        Param(
+            "c_w",
+            "N*m*s/rad per unit J (release); N*s/m (driven)",
+            0.0,
+            BIG,
+            5.0,
+            "wheel (tyre) or mount damping",
+        ),
     ),
     (),
     "an internal degree of freedom: the damper acts on a wheel on a spring and dashpot "
-    "(k_w, c_w, inertia m_w per unit beam inertia), not on the ground",
+    "(release: k_w, c_w, inertia m_w per unit beam inertia), not on the ground; or the "
+    "damper sits behind a compliant mount (driven: k_w, c_w between the measured motion "
+    "and the damper end of mass m_w)",
     lambda p, ks: {},
     lambda c, ks: {},
-    system="hystdisc.models.wheel:TermsOnCompliantWheel",
+    system="hystdisc.models.wheel:series_compliance_system",
     significance=("k_w",),
-    experiments=("release",),
+    experiments=("release", "driven"),
 )
-"""The SAS beam on a compliant wheel (structural: :class:`~hystdisc.models.wheel.TermsOnCompliantWheel`).
-Its significance is that of the compliance ``1/k_w`` (the same z-score as ``k_w``): a
-stiff wheel whose ``k_w`` the data do not bound is the rig without it."""
+"""Series compliance (structural: :func:`~hystdisc.models.wheel.series_compliance_system`):
+the SAS beam on a compliant wheel (release) or the damper behind a compliant mount
+(driven). Its significance is that of the compliance ``1/k_w`` (the same z-score as
+``k_w``): a stiff wheel or mount whose ``k_w`` the data do not bound is the model without it."""
 
 
 SHEAR_THINNING = Effect(

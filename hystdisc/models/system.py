@@ -114,6 +114,15 @@ class StateSpaceModel:
             x[self.states.index(k)] = float(v)
         return x
 
+    def output_delay(self, values: Mapping[str, float]) -> float:
+        """Delay (s) of the measured output behind the model's: the ``channel_delay``
+        parameter ``tau_d`` among ``values``, else the delay of the term model the system
+        is built around (a structural effect's), else 0."""
+        if "tau_d" in values:
+            return float(values["tau_d"])
+        terms = getattr(self, "terms", None)
+        return float(terms.delay) if terms is not None else 0.0
+
     def equations(self) -> str:  # pragma: no cover - documented by subclasses
         """The model's equations, one per line."""
         return ""

@@ -1,4 +1,4 @@
-"""The SAS beam on a compliant wheel: a damper family with two extra states.
+"""Series compliance: the SAS beam on a compliant wheel, a driven damper on a compliant mount.
 
 The seed's rig simulation takes the damper's lower end as fixed; its results suspect the
 "neglected tyre damping". Here the damper acts between the beam (angle ``theta``, what
@@ -13,6 +13,18 @@ the sensor reads) and a wheel (``y``) that rests on a spring ``k_w`` and a dashp
 spring). With a stiff wheel (``k_w`` large) the model is the seed's rig. Nothing outside
 this module knows about it: it is a :class:`~hystdisc.models.system.StateSpaceModel`
 like any other.
+
+In a driven experiment the same internal degree of freedom sits between the motion the
+sensor measures (the actuator's ``x``) and the damper: the damper's end ``y`` (mass
+``m_w``) is tied to ``x`` by a spring ``k_w`` and a dashpot ``c_w`` (bushings, mounts, a
+compliant fixture; Spencer's internal spring in its simplest form), and the load cell
+reads the damper's force on its fixed end (:class:`TermsOnCompliantMount`)::
+
+    m_w y'' = k_w (x - y) + c_w (x' - y') - T(y, y', z, i)
+    z'      = g(y', z)
+    F       = T(y, y', z, i)
+
+:func:`series_compliance_system` picks the realization for the experiment.
 
 :class:`TermsOnCompliantWheel` is the same rig around any model in term form (a family
 plus effects, as a fit builds it): the structural effect ``series_compliance``. The
@@ -51,7 +63,7 @@ from hystdisc.models.effects import SERIES_COMPLIANCE
 from hystdisc.models.params import RIG_PARAMS
 from hystdisc.models.system import StateSpaceModel
 from hystdisc.models.terms import SIGN_EPS, TermModel
-from hystdisc.registry import get_family
+from hystdisc.registry import get_experiment, get_family
 
 #: The wheel's parameters (per unit beam inertia): those of the ``series_compliance`` effect.
 WHEEL_PARAMS = SERIES_COMPLIANCE.params
@@ -187,3 +199,86 @@ class TermsOnCompliantWheel(StateSpaceModel):
             f"with R the rig terms ({', '.join(self.rig.torque) or 'none'}) and T, dz/dt of:\n"
             f"{self.damper.equations()}"
         )
+
+
+# p layout (terms on a mount, driven): the damper's term_vector, eps, m_w, k_w, c_w
+_EPS3 = TERM_SIZE
+
+
+@numba.njit(cache=True, nogil=True)
+def _mount_rate(x, u, p, dx):
+    # states: the mount's deflection d = x - y, the damper end's velocity v, z;
+    # inputs: the measured motion and its velocity
+    d, v, z = x[0], x[1], x[2]
+    T = term_torque(p[:N_BASE], u[0] - d, v, z, p[_EPS3])
+    dx[0] = u[1] - v
+    dx[1] = (p[_EPS3 + 2] * d + p[_EPS3 + 3] * (u[1] - v) - T) / p[_EPS3 + 1]
+    dx[2] = vector_rate(p, v, z)
+
+
+@numba.njit(cache=True, nogil=True)
+def _mount_output(x, u, p):
+    return term_torque(p[:N_BASE], u[0] - x[0], x[1], x[2], p[_EPS3])
+
+
+class TermsOnCompliantMount(StateSpaceModel):
+    """A model in term form behind a compliant mount (driven experiments).
+
+    The structural effect ``series_compliance`` when the motion is imposed: every term of
+    ``terms`` acts across the damper on ``y = x - d``, where ``d`` is the deflection of the
+    mount (spring ``k_w``, dashpot ``c_w``, the damper end's mass ``m_w``) between the
+    measured motion ``x`` and the damper; the output is the damper's force. Both start at
+    rest relative to the ground (``d = 0``, ``y' = 0``).
+
+    Parameters
+    ----------
+    terms : TermModel
+        The damper and its term effects (e.g. ``Model("bouc-wen-std").to_terms()``).
+
+    Examples
+    --------
+    >>> from hystdisc.models import Model
+    >>> m = TermsOnCompliantMount(Model("bouc-wen-std").to_terms())
+    >>> m.states, m.inputs
+    (('d', 'y_dot', 'z'), ('theta', 'theta_dot'))
+    >>> m.run_parameters({"k_w": 3e5}, current=0.0)[-3:].tolist()
+    [0.2, 300000.0, 5.0]
+    """
+
+    states = ("d", "y_dot", "z")
+    inputs = ("theta", "theta_dot")
+    output = "torque"
+    rate = staticmethod(_mount_rate)
+    observe = staticmethod(_mount_output)
+    params = WHEEL_PARAMS
+
+    def __init__(self, terms: TermModel) -> None:
+        self.terms = terms
+        self.name = "term model behind a compliant mount"
+
+    def run_parameters(self, values: Mapping[str, float], current: float) -> np.ndarray:
+        v = self.check(values)
+        tail = [SIGN_EPS, v["m_w"], v["k_w"], v["c_w"]]
+        return np.concatenate([term_vector(self.terms, current), tail])
+
+    def equations(self) -> str:
+        return (
+            "m_w*y'' = k_w*(theta - y) + c_w*(theta_dot - y_dot) - T(y, y_dot, z, i)\n"
+            "measured: T\n"
+            f"with T, dz/dt of:\n{self.terms.equations()}"
+        )
+
+
+def series_compliance_system(terms: TermModel, experiment: str = "release") -> StateSpaceModel:
+    """The ``series_compliance`` realization of ``terms`` for ``experiment``: the beam on
+    a compliant wheel (release) or the damper behind a compliant mount (driven).
+
+    Examples
+    --------
+    >>> from hystdisc.models import Model
+    >>> type(series_compliance_system(Model("dahl").to_terms(), "driven")).__name__
+    'TermsOnCompliantMount'
+    """
+    if get_experiment(experiment).motion_imposed:
+        return TermsOnCompliantMount(terms)
+    return TermsOnCompliantWheel(terms)

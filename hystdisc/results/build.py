@@ -89,7 +89,17 @@ def _common(fit: Any, fam: Any, admissibility: Any | None) -> dict:
 
 
 def system_entry(fit: Any) -> dict | None:
-    """The ``system`` table of a state-space fit (None for a term model)."""
+    """The ``system`` table of a state-space fit (None for a term model). A term model
+    around a structural effect (``series_compliance``) is its term part (``model``) plus
+    ``{"structural": name, "experiment", "values": the effect's parameters}``."""
+    structure = getattr(fit.par, "structure", None)
+    if structure is not None:
+        _, values = fit.model
+        return {
+            "structural": structure.name,
+            "experiment": fit.par.experiment,
+            "values": {k: float(v) for k, v in values.items()},
+        }
     if not fit.is_system:
         return None
     system, values = fit.model

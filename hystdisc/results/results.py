@@ -160,7 +160,9 @@ class Results(Record):
         Why the selected family is not the one BIC alone would have chosen (schema 3).
     system_model : dict or None
         The final model of a system family (schema 4): ``family``, ``experiment``,
-        ``effects`` and the parameter ``values``.
+        ``effects`` and the parameter ``values``; or, for a final model with a structural
+        effect, ``structural`` (its name), ``experiment`` and the effect's ``values``
+        around the term part ``model``.
     current_laws : dict or None
         The staged fit (``discover --staged``): per-level fits, each law parameter's
         per-level values with intervals, the candidate laws' held-out errors, the chosen
@@ -317,8 +319,17 @@ class Results(Record):
             rec = None  # term_model says what is missing
         if not rec:
             return self.term_model(family)
-        from hystdisc.registry import get_family
+        from hystdisc.registry import get_effect, get_family
 
+        if "structural" in rec:  # the term part (``model``) around a structural effect
+            terms = self.term_model(family)
+            try:
+                system = get_effect(rec["structural"]).system_model(terms, rec["experiment"])
+                values = {k: float(v) for k, v in rec["values"].items()}
+                system.check(values)
+            except (KeyError, TypeError, ValueError, AttributeError, HystdiscError) as exc:
+                raise _no_model(family, exc) from None
+            return system, values
         try:
             fam = get_family(rec["family"])
             system = fam.system(rec["experiment"], tuple(rec.get("effects", ())))

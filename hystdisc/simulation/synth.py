@@ -20,7 +20,8 @@ A structural effect (``series_compliance``: the beam on a compliant wheel) makes
 model a state-space system; its runs are simulated by the error-controlled integrator
 (:func:`~hystdisc.simulation.ode.simulate_system`) from rest at ``theta0``, the wheel at
 rest at 0 (``--effect series_compliance:k_w=900,c_w=3,m_w=0.3`` on the command line,
-``[effects.series_compliance]`` in a scenario; release experiments only).
+``[effects.series_compliance]`` in a scenario; release and driven experiments: a driven
+damper behind a compliant mount, the mount at rest).
 
 Scenarios are TOML files with the same settings as ``hystdisc simulate`` (see
 :func:`load_scenario`).
@@ -452,8 +453,13 @@ def generate(
             wshift = [a * om * np.cos(om * ts) for a, om in mot]
         else:
             shifted, wshift = ths, ws
-        if _is_system(mdl):
-            sys, values = mdl.system(exp)
+        structural = None if _is_system(mdl) else _structural(mdl, exp)
+        if _is_system(mdl) or structural is not None:
+            if structural is not None:
+                sys = registry.get_effect(structural).system_model(mdl.to_terms(), exp)
+                values = mdl.effects[structural]
+            else:
+                sys, values = mdl.system(exp)
             torques = [
                 simulate_system(
                     sys, t, sys.initial_state(), values, c, {"theta": th, "theta_dot": w}
@@ -537,7 +543,7 @@ def _simulate_structural(
     mdl: Model, name: str, t: np.ndarray, cur: Sequence[float], th0: Sequence[float]
 ) -> list[np.ndarray]:
     """The measured angle of each run of ``mdl`` realized with its structural effect."""
-    system = registry.get_effect(name).system_model(mdl.to_terms())
+    system = registry.get_effect(name).system_model(mdl.to_terms(), "release")
     out = []
     for c, a in zip(cur, th0, strict=True):
         sim = simulate_system(system, t, system.initial_state(theta=a), mdl.effects[name], c)
