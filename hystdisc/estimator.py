@@ -182,10 +182,13 @@ class Discovery(BaseEstimator):
         After the fit, diagnose the residual against the effect catalogue, add effects
         that improve BIC and test the final residual for whiteness (:mod:`hystdisc.closing`).
     single_current : bool
-        Kept for compatibility: runs that all share one current (a rig without a coil,
-        such as the hysteretic benchmark) are always accepted; the families are compared
-        at that current, with a warning that the current dependence is not identifiable
-        (the current-dependent parameters are fixed at 0).
+        Declares that all runs share one current, which silences the warning about it;
+        nothing else changes. Runs that all share one current (a rig without a coil, such
+        as the hysteretic benchmark) are always accepted: the families are compared at
+        that current, with a one-line warning that the current dependence is not
+        identifiable; the current-dependent parameters are fixed at 0, marked not
+        identifiable, and ``results_.current_dependence`` says so. With several currents
+        it has no effect.
     input_hold : {'cubic', 'linear', 'zoh'}
         Forced experiments: how the input is interpolated between its samples (a cubic
         spline for a sampled smooth force; ``zoh`` for a DAC output held between samples).
@@ -208,7 +211,8 @@ class Discovery(BaseEstimator):
     currents_ : ndarray
         Each run's current.
     single_current_ : bool
-        All runs share one current (the current-dependent parameters are fixed at 0).
+        All runs share one current (the current-dependent parameters are fixed at 0 and
+        the current dependence is reported as not identifiable).
     window_ : int
         Smoothing window of the derivatives, in samples of the decimated stage-1 grid.
     fit_data_ : FitData
@@ -545,7 +549,7 @@ class Discovery(BaseEstimator):
         validate(dataset, need_currents=1)
         levels = distinct_currents(dataset.currents)
         self.single_current_ = len(levels) < 2
-        if self.single_current_:
+        if self.single_current_ and not self.single_current:  # declared: no warning needed
             check = (
                 " (if the runs were recorded at different currents, check the current column "
                 "and its unit: --column current=NAME, --units current=mA)"

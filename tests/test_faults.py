@@ -303,9 +303,10 @@ def test_one_current_just_works(base, tmp_path, capsys):
     d, err, texts = fit(one, model="dahl")
     assert err is None, err
     assert any("the family is fitted at it" in t for t in texts)
-    # --single-current is still accepted and changes nothing
-    d2, err, _ = fit(one, single_current=True)
+    # --single-current is still accepted: it silences the warning and changes nothing else
+    d2, err, texts2 = fit(one, single_current=True)
     assert err is None and d2.family_ == fit(one)[0].family_
+    assert not [t for t in texts2 if "share one current" in t]
     data = write_csv(one, tmp_path / "one.csv")
     out = tmp_path / "results.json"
     code, _, err = cli(["discover", data, "--json", out, *CLI_FAST], capsys)

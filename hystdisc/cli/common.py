@@ -114,8 +114,9 @@ def add_discovery_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--single-current",
         action="store_true",
-        help="accepted for compatibility: runs that all share one current (a rig without a "
-        "coil) are compared at it anyway, the current terms fixed at 0",
+        help="declare that all runs share one current (a rig without a coil): silences the "
+        "warning about it. Without it such data are compared at that current anyway, the "
+        "current terms fixed at 0 and reported not identifiable",
     )
     p.add_argument(
         "--input-hold",

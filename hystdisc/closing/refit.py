@@ -104,14 +104,16 @@ def candidate_effects(fit: OEFit, data: FitData) -> tuple[list[str], list[dict]]
         elif not eff.terms:  # a measurement effect: it needs two recorded channels
             if not (exp.motion_imposed or exp.has_input):
                 reason = f"a {exp.name} experiment records one channel"
+        # one current: the family's own current terms are fixed at 0, so "already has" would
+        # mislead; the levels are what rules a current effect out
+        elif any(t.startswith("i") for t in eff.terms) and levels < 2:
+            reason = "needs two current levels or more, the data have one"
         elif all(t in have for t in eff.terms):
             reason = f"{fam.name} already has {', '.join(eff.terms)}"
         elif any(t in Z_TORQUE_TERMS for t in eff.terms) and not has_state:
             reason = f"{fam.name} has no hysteretic state z"
         elif any(t.startswith("i^2") for t in eff.terms) and levels < 3:
             reason = f"needs three current levels or more, the data have {levels}"
-        elif any(t.startswith("i") for t in eff.terms) and levels < 2:
-            reason = "needs two current levels or more, the data have one"
         elif name in SPRING_EFFECTS and not spring:
             reason = "no rig spring (k_s is not significantly above 0)"
         if reason is None:

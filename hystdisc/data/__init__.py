@@ -31,6 +31,7 @@ The modules, one job each:
 ``rigs``          :func:`read_rig`, :func:`filter_windows`
 ``loading``       :func:`load`
 ``validation``    :func:`validate` and the checks of the motion
+``plausibility``  :func:`implausible_units`: magnitudes that do not fit a unit
 ``preprocessing`` :func:`estimate_noise`, :func:`trim_release`
 ``writers``       :func:`atomic_write_bytes`, :func:`atomic_write_text`,
                   :func:`write_csv`
@@ -51,6 +52,7 @@ from hystdisc.data.csvfile import read_csv
 from hystdisc.data.dataset import CANONICAL_COLUMNS, EXPERIMENTS, Dataset, Run, distinct_currents
 from hystdisc.data.loading import load
 from hystdisc.data.mat import read_mat
+from hystdisc.data.plausibility import ImplausibleUnitsWarning, implausible_units
 from hystdisc.data.preprocessing import estimate_noise, trim_release
 from hystdisc.data.rigs import filter_windows, motion_frequency, read_rig
 from hystdisc.data.table import read_table
@@ -66,6 +68,7 @@ __all__ = [
     "DATA_SUFFIXES",
     "DEFAULT_CURRENT_PATTERN",
     "EXPERIMENTS",
+    "ImplausibleUnitsWarning",
     "LOCKED_RATIO",
     "MIN_SAMPLES",
     "Dataset",
@@ -75,6 +78,7 @@ __all__ = [
     "current_from_name",
     "distinct_currents",
     "estimate_noise",
+    "implausible_units",
     "load",
     "parse_toml",
     "read_csv",

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import warnings
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -17,6 +18,7 @@ from hystdisc.data.columns import DATA_SUFFIXES, check_column_map, infer_experim
 from hystdisc.data.csvfile import read_csv
 from hystdisc.data.dataset import Dataset, Run, check_experiment
 from hystdisc.data.mat import mat_lookup, read_mat
+from hystdisc.data.plausibility import ImplausibleUnitsWarning
 from hystdisc.data.rigs import normalize_rig, read_rig
 from hystdisc.data.table import read_table
 from hystdisc.data.validation import validate
@@ -139,13 +141,17 @@ def load(
     merge_mats = len(mats) > 1 and _mats_split_signals(mats, colmap)
     datasets: list[tuple[Path, Dataset]] = []
     done_mats = False
-    for f in files:
-        if merge_mats and f.suffix.lower() == ".mat":
-            if not done_mats:  # all .mat files are read at the first one, as one record
-                datasets.append((f, _read_mat(mats, opts)))
-            done_mats = True
-            continue
-        datasets.append((f, _read_file(f, opts)))
+    reads = len(files) - (len(mats) - 1 if merge_mats else 0)
+    with warnings.catch_warnings():
+        if reads > 1:  # units are judged once, on all files together (_join)
+            warnings.simplefilter("ignore", ImplausibleUnitsWarning)
+        for f in files:
+            if merge_mats and f.suffix.lower() == ".mat":
+                if not done_mats:  # all .mat files are read at the first one, as one record
+                    datasets.append((f, _read_mat(mats, opts)))
+                done_mats = True
+                continue
+            datasets.append((f, _read_file(f, opts)))
     out = _join(datasets, label)
     out.filter = settings["filter"]
     return out

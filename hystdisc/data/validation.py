@@ -3,8 +3,10 @@
 :func:`validate` raises a one-line :class:`~hystdisc.errors.HystdiscError` naming the file,
 the run, the problem and the fix: missing signals, unequal lengths, NaN/inf, too few
 samples, time that does not increase, irregular sampling, a run that never moves or a
-locked damper, too few distinct currents. A clipped sensor and a release that does not
-decay are warned about (:class:`~hystdisc.errors.HystdiscWarning`).
+locked damper, too few distinct currents. A clipped sensor, a release that does not
+decay and a column whose magnitudes are implausible for its unit
+(:mod:`hystdisc.data.plausibility`) are warned about
+(:class:`~hystdisc.errors.HystdiscWarning`).
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ import numpy as np
 
 from hystdisc import registry
 from hystdisc.data.dataset import COLUMN_FLAG, Dataset, Run, distinct_currents
+from hystdisc.data.plausibility import ImplausibleUnitsWarning, implausible_units
 from hystdisc.data.preprocessing import estimate_noise
 from hystdisc.data.text import check_finite
 from hystdisc.errors import HystdiscWarning, input_error
@@ -99,53 +102,20 @@ def _validate(dataset: Dataset, need_currents: int) -> Dataset:
         _check_moves(run, src, exp)
         _check_motion(run, src, exp)
     _check_currents(dataset, need_currents)
-    _check_units(dataset, exp)
+    _check_units(dataset)
     return dataset
 
 
-#: Below this sampling rate (Hz) a damper record is implausible: time in milliseconds?
-MIN_PLAUSIBLE_FS = 10.0
-#: Above this coil current (A) a damper record is implausible: current in milliamperes?
-MAX_PLAUSIBLE_CURRENT = 50.0
-
-
-def _check_units(dataset: Dataset, exp) -> None:
+def _check_units(dataset: Dataset) -> None:
     """One warning per column whose magnitudes are implausible for its declared unit (the
-    run goes on: the user may know better; the fix names the ``--units`` flag)."""
-    src = dataset.source
-    runs = [r for r in dataset.runs if r.n > 1]
-    if not runs:
-        return
-    fs = float(np.median([r.fs for r in runs]))
-    if fs < MIN_PLAUSIBLE_FS:
-        longest = max(r.duration for r in runs)
-        _warn_unit(
-            f"{src}: the sampling rate is {fs:.3g} samples per second and the longest run "
-            f"lasts {longest:.4g} s, implausible for a damper test: is the time column in "
-            "milliseconds? (fix: --units t=ms)"
-        )
-    peak = max(float(np.max(np.abs(r.theta))) for r in runs)
-    if peak > 2 * np.pi and exp.motion_imposed:
-        _warn_unit(
-            f"{src}: theta reaches {peak:.4g}, more than a turn in rad and more than 6 m as "
-            "a displacement: is it in degrees or millimetres? (fix: --units theta=deg or "
-            "--units theta=mm)"
-        )
-    elif peak > 2 * np.pi:
-        _warn_unit(
-            f"{src}: theta reaches {peak:.4g} rad, more than a turn of the beam: is it in "
-            "degrees? (fix: --units theta=deg)"
-        )
-    top = max(abs(r.current) for r in dataset.runs)
-    if top > MAX_PLAUSIBLE_CURRENT:
-        _warn_unit(
-            f"{src}: the coil current reaches {top:.4g} A, implausible for an MR damper: is "
-            "it in milliamperes? (fix: --units current=mA)"
-        )
+    bounds: :mod:`hystdisc.data.plausibility`); the run goes on, the user may know better,
+    and the message names the ``--units`` fix."""
+    for message in implausible_units(dataset):
+        _warn_unit(message)
 
 
 def _warn_unit(message: str) -> None:
-    warnings.warn(message, HystdiscWarning, stacklevel=_STACKLEVEL)
+    warnings.warn(message, ImplausibleUnitsWarning, stacklevel=_STACKLEVEL)
 
 
 def _where(run: Run, k: int) -> str:

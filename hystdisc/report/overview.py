@@ -43,6 +43,9 @@ class OverviewSections:
             rows.append(["residual", residual_sentence(d.residual)])
         if d.unexplained:
             rows.append(["unexplained", d.unexplained_text or "structure remains"])
+        cd = d.current_dependence
+        if cd and not cd.get("identifiable", True):
+            rows.append(["current dependence", f"not identifiable: {cd.get('note', '')}"])
         rows.append(["hystdisc", d.version or __version__])
         self.table(["item", "value"], rows, left=2)
         if d.equal_fits:

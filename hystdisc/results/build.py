@@ -18,17 +18,55 @@ from hystdisc.results.records import term_model_to_dict
 from hystdisc.results.results import Results
 
 
-def _parameters(fit: Any) -> dict:
-    """``{name: {value, ci95, identifiable}}`` of an output-error fit."""
+def _parameters(fit: Any, fixed: tuple[str, ...] = ()) -> dict:
+    """``{name: {value, ci95, identifiable}}`` of an output-error fit; the parameters
+    ``fixed`` (held at 0 because the data cannot show them) are not identifiable."""
     params = {}
     for k, v in fit.params.items():
         lo, hi = fit.ci95.get(k, (float("nan"), float("nan")))
-        params[k] = {"value": v, "ci95": [lo, hi], "identifiable": fit.identifiable.get(k, True)}
+        ident = fit.identifiable.get(k, True) and k not in fixed
+        params[k] = {"value": v, "ci95": [lo, hi], "identifiable": ident}
     return params
 
 
+def current_dependence(disc: Any) -> dict | None:
+    """The ``current_dependence`` table when all runs share one current, else None.
+
+    ``{"identifiable": false, "currents": [...], "fixed": [...], "note": ...}``: the
+    current levels of the data, the selected family's current-dependent parameters (fixed
+    at 0, marked not identifiable in every family table) and the reason in words. Absent
+    from ``results.json`` when the data hold two current levels or more.
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace
+    >>> current_dependence(SimpleNamespace(single_current_=True, currents_=[0.5, 0.5],
+    ...     family_="dahl"))["fixed"]
+    ['k_wb']
+    """
+    if not getattr(disc, "single_current_", False):
+        return None
+    levels = sorted({float(c) for c in disc.currents_})
+    fixed = list(get_family(disc.family_).current_params)
+    shown = ", ".join(f"{c:g}" for c in levels)
+    return {
+        "identifiable": False,
+        "currents": levels,
+        "fixed": fixed,
+        "note": (
+            f"all runs share one current ({shown} A); {', '.join(fixed) or 'no parameter'} "
+            f"of {disc.family_} fixed at 0, the other parameters are its values at {shown} A "
+            "(every family's current-dependent parameters likewise)"
+        ),
+    }
+
+
 def family_entry(
-    name: str, fit: Any, discovered_terms: dict, admissibility: Any | None = None
+    name: str,
+    fit: Any,
+    discovered_terms: dict,
+    admissibility: Any | None = None,
+    one_current: bool = False,
 ) -> dict:
     """The ``families`` entry of one family's fit (a plain table of the schema).
 
@@ -42,6 +80,9 @@ def family_entry(
         ``{"torque": [...], "hysteresis": [...]}`` that stage 1 discovered.
     admissibility : Admissibility, optional
         Its physical admissibility (``ok``, ``violations``).
+    one_current : bool
+        All runs share one current: the family's current-dependent parameters were fixed
+        at 0 and are marked not identifiable.
 
     Returns
     -------
@@ -49,9 +90,10 @@ def family_entry(
         The table of :class:`~hystdisc.results.FamilyResult`.
     """
     fam = get_family(name)
+    fixed = tuple(fam.current_params) if one_current else ()
     if fit.is_system:  # a state-space family: no terms to compare with stage 1's
         return {
-            **_common(fit, fam, admissibility),
+            **_common(fit, fam, admissibility, fixed),
             "missing_terms": [],
             "extra_terms": [],
             "notes": list(fit.notes),
@@ -66,7 +108,7 @@ def family_entry(
     dt = set(discovered_terms["torque"]) - {"theta", "1"}
     dh = set(discovered_terms["hysteresis"])
     return {
-        **_common(fit, fam, admissibility),
+        **_common(fit, fam, admissibility, fixed),
         # hysteresis-side names are prefixed: theta_dot and |theta_dot|*z exist on both sides
         "missing_terms": sorted(dt - fam_t) + [f"dz/dt: {t}" for t in sorted(dh - fam_h)],
         "extra_terms": sorted(fam_t - dt) + [f"dz/dt: {t}" for t in sorted(fam_h - dh)],
@@ -76,9 +118,9 @@ def family_entry(
     }
 
 
-def _common(fit: Any, fam: Any, admissibility: Any | None) -> dict:
+def _common(fit: Any, fam: Any, admissibility: Any | None, fixed: tuple[str, ...]) -> dict:
     return {
-        "parameters": _parameters(fit),
+        "parameters": _parameters(fit, fixed),
         "normalization": getattr(fit.par, "normalization", "") or fam.normalization,
         "rms": fit.rms,
         "bic": fit.bic,
@@ -117,12 +159,19 @@ def _admissible(adm: Any | None) -> dict:
     return {"admissible": bool(adm.ok), "violations": list(adm.violations)}
 
 
-def final_entry(fit: Any, family: str, effects: list[str], admissibility: Any = None) -> dict:
-    """The ``final`` table: the selected family with its accepted effects."""
+def final_entry(
+    fit: Any,
+    family: str,
+    effects: list[str],
+    admissibility: Any = None,
+    fixed: tuple[str, ...] = (),
+) -> dict:
+    """The ``final`` table: the selected family with its accepted effects (``fixed``: its
+    parameters held at 0, not identifiable)."""
     return {
         "family": family,
         "effects": list(effects),
-        "parameters": _parameters(fit),
+        "parameters": _parameters(fit, fixed),
         "rms": fit.rms,
         "bic": fit.bic,
         "heldout_rms": fit.heldout_rms,
@@ -151,7 +200,8 @@ def build_results(disc: Any, dataset: Any) -> Results:
     with ``terms``, ``bic``, ``inclusion``), ``discovered_fit_``, ``family_fits_``,
     ``family_``, ``declared_``, ``equal_fits_``, ``fit_data_`` (its ``mask``, ``names``,
     ``folds()``, ``heldout_by``), ``conditions_``, ``envelope_``, ``admissibility_``,
-    ``final_admissibility_``, ``selection_note_``, ``loop_``
+    ``final_admissibility_``, ``selection_note_``, ``single_current_``, ``currents_``,
+    ``loop_``
     (the closing loop's ``LoopResult``, or None when it did not run: ``accepted``,
     ``tried``, ``skipped``, ``diagnosis``, ``unexplained``, ``unexplained_text``,
     ``residual``, ``fit``, ``effects``), the parameters ``input_hold`` and ``seed``, and
@@ -169,7 +219,12 @@ def build_results(disc: Any, dataset: Any) -> Results:
     Results
     """
     adm = disc.admissibility_
-    fams = {n: family_entry(n, f, disc.terms_, adm.get(n)) for n, f in disc.family_fits_.items()}
+    currents = current_dependence(disc)
+    one = currents is not None
+    fams = {
+        n: family_entry(n, f, disc.terms_, adm.get(n), one_current=one)
+        for n, f in disc.family_fits_.items()
+    }
     sel = disc.family_fits_[disc.family_]
     dfit = disc.discovered_fit_
     loop = disc.loop_
@@ -217,6 +272,8 @@ def build_results(disc: Any, dataset: Any) -> Results:
         "selection_note": disc.selection_note_,
         "system_model": system_entry(final),
     }
+    if currents is not None:  # one current: its dependence is not identifiable
+        data["current_dependence"] = currents
     staged = getattr(disc, "staged_", None)
     if staged is not None:  # the seed's flowchart: per-level fits and current laws
         data["current_laws"] = staged.to_dict(disc.fit_data_.names)
@@ -228,7 +285,11 @@ def build_results(disc: Any, dataset: Any) -> Results:
                 "diagnosis": loop.diagnosis,
                 "unexplained_text": loop.unexplained_text,
                 "final": final_entry(
-                    loop.fit, disc.family_, loop.effects, disc.final_admissibility_
+                    loop.fit,
+                    disc.family_,
+                    loop.effects,
+                    disc.final_admissibility_,
+                    tuple(currents["fixed"]) if currents else (),
                 ),
             }
         )

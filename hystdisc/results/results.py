@@ -163,6 +163,12 @@ class Results(Record):
         ``effects`` and the parameter ``values``; or, for a final model with a structural
         effect, ``structural`` (its name), ``experiment`` and the effect's ``values``
         around the term part ``model``.
+    current_dependence : dict or None
+        Present when all runs share one current (a rig without a coil, the hysteretic
+        benchmark): ``identifiable`` (false), ``currents`` (the one level), ``fixed`` (the
+        selected family's current-dependent parameters, held at 0 and marked not
+        identifiable in the family tables) and a ``note``; None (absent) when the data hold
+        two current levels or more.
     current_laws : dict or None
         The staged fit (``discover --staged``): per-level fits, each law parameter's
         per-level values with intervals, the candidate laws' held-out errors, the chosen
@@ -212,6 +218,7 @@ class Results(Record):
     envelope: dict[str, Any] | None = None
     selection_note: str | None = None
     system_model: dict[str, Any] | None = None
+    current_dependence: dict[str, Any] | None = None
     current_laws: dict[str, Any] | None = None
     extra: dict[str, Any] = field(default_factory=dict, repr=False)
 

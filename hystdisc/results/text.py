@@ -182,6 +182,9 @@ def report(res: Results) -> str:
             f"Note: {', '.join(res.equal_fits)} fit as well as {res.family} "
             f"(BIC within 6); the data cannot tell them apart."
         )
+    cd = res.current_dependence
+    if cd and not cd.get("identifiable", True):
+        out.append(f"Current dependence: not identifiable: {cd.get('note', '')}")
     sel = "declared" if res.declared else "selected"
     out += ["", f"{sel.capitalize()} family: {res.family}", parameter_table(res)]
     f = res.families[res.family]
@@ -220,6 +223,9 @@ def html_summary(res: Results) -> str:
     eff_html = f"<b>Accepted effects</b><ul>{eff}</ul>" if eff else "<i>No effect accepted.</i>"
     if res.unexplained:
         eff_html += f"<br><b>Unexplained:</b> {e(str(res.unexplained_text or ''))}"
+    cd = res.current_dependence
+    if cd and not cd.get("identifiable", True):
+        eff_html += f"<br><b>Current dependence not identifiable:</b> {e(str(cd.get('note')))}"
     return (
         f"<div><b>hystdisc</b> — {e(str(res.input))} ({e(str(res.experiment))})<br>"
         f"<b>Discovered:</b> {e(disc.name if disc else '')}<br><code>{eq}</code>"

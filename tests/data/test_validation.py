@@ -4,16 +4,19 @@ from __future__ import annotations
 
 import math
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from hystdisc.data import (
     Dataset,
+    ImplausibleUnitsWarning,
     Run,
     read_csv,
     validate,
 )
+from hystdisc.data.plausibility import MAX_FORCE, MAX_MOTION
 from hystdisc.errors import HystdiscError, HystdiscWarning
 
 from .helpers import check_message, csv_with, good_rows, make_dataset, make_run
@@ -134,8 +137,6 @@ def test_release_that_does_not_decay_is_warned_but_forced_is_not():
 @pytest.fixture(scope="module")
 def dahl_csv_text():
     """The bundled Dahl set, as a user would hold it."""
-    from pathlib import Path
-
     return (Path(__file__).resolve().parents[2] / "data_synth" / "dahl.csv").read_text()
 
 
@@ -152,38 +153,142 @@ def _with_column(text: str, column: str, factor: float) -> str:
     return "\n".join(out) + "\n"
 
 
-@pytest.mark.parametrize(
-    "column, factor, words, fix",
-    [
-        ("t", 1000.0, "is the time column in milliseconds?", "--units t=ms"),
-        ("theta", 180.0 / math.pi, "is it in degrees?", "--units theta=deg"),
-        ("current", 1000.0, "is it in milliamperes?", "--units current=mA"),
-    ],
-)
-def test_implausible_units_are_warned_with_the_fix(
-    dahl_csv_text, tmp_path, capsys, column, factor, words, fix
-):
+#: the exact warnings for the bundled Dahl set recorded in other units ({} is the file)
+DAHL_IN_OTHER_UNITS = {
+    "t": (
+        1000.0,
+        "{}: t gives a sampling rate of 1 Hz, a 5999 s record and motion at 0.0021 Hz, "
+        "implausible for a damper test (sampled below 10 Hz or moving slower than 0.005 Hz): "
+        "is the time in milliseconds? (fix: --units t=ms)",
+        "t=ms",
+    ),
+    "theta": (
+        180.0 / math.pi,
+        "{}: theta reaches 17.29 rad, a release of more than half a turn: is it in degrees? "
+        "(fix: --units theta=deg)",
+        "theta=deg",
+    ),
+    "current": (
+        1000.0,
+        "{}: the coil current reaches 1000 A, implausible for an MR damper: is it in "
+        "milliamperes? (fix: --units current=mA)",
+        "current=mA",
+    ),
+}
+
+
+def _unit_warnings(ds_or_call) -> list[str]:
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        ds_or_call() if callable(ds_or_call) else validate(ds_or_call)
+    return [str(w.message) for w in caught if issubclass(w.category, ImplausibleUnitsWarning)]
+
+
+@pytest.mark.parametrize("column", list(DAHL_IN_OTHER_UNITS))
+def test_implausible_units_are_warned_with_the_fix(dahl_csv_text, tmp_path, capsys, column):
+    """The bundled Dahl set with time in ms, the angle in degrees or the current in mA:
+    one exact warning naming the --units fix (API: a Python warning; CLI: one line)."""
     from hystdisc.cli import main
 
+    factor, message, unit = DAHL_IN_OTHER_UNITS[column]
     path = tmp_path / f"dahl_{column}.csv"
     path.write_text(_with_column(dahl_csv_text, column, factor))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", HystdiscWarning)  # the reader validates too
+    expected = message.format(path)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
         ds = read_csv(path)
-    caught = [w for w in _warnings_of(ds) if words in str(w.message)]
-    (w,) = caught
-    assert words in str(w.message) and fix in str(w.message) and str(path) in str(w.message)
-    # through the command line: one line on stderr, and the --units fix makes it go away
+    (w,) = [w for w in caught if issubclass(w.category, HystdiscWarning)]
+    assert str(w.message) == expected and w.category is ImplausibleUnitsWarning
+    assert _unit_warnings(ds) == [expected]
+    # through the command line: that one line on stderr, and the --units fix removes it
     argv = ["discover", str(path), "--families", "dahl", "--no-heldout", "--no-effects", "--quiet"]
     assert main([*argv, "--out", str(tmp_path / "a")]) == 0
-    err = [ln for ln in capsys.readouterr().err.splitlines() if words in ln]
-    assert len(err) == 1 and err[0].startswith("hystdisc: warning:")
-    unit = fix.split()[-1].split("=")
-    assert main([*argv, "--out", str(tmp_path / "b"), "--units", "=".join(unit)]) == 0
-    assert words not in capsys.readouterr().err
+    err = capsys.readouterr().err.splitlines()
+    assert [ln for ln in err if "implausible" in ln or "(fix: --units" in ln] == [
+        f"hystdisc: warning: {expected}"
+    ]
+    assert main([*argv, "--out", str(tmp_path / "b"), "--units", unit]) == 0
+    assert "--units" not in capsys.readouterr().err
 
 
-def test_plausible_units_are_not_warned(dahl_csv_text, tmp_path):
-    path = tmp_path / "dahl.csv"
-    path.write_text(dahl_csv_text)
-    assert not [w for w in _warnings_of(read_csv(path)) if "--units" in str(w.message)]
+@pytest.mark.parametrize(
+    "experiment, column, value, message",
+    [
+        (
+            "driven",
+            "theta",
+            25.0,
+            "x.csv: theta reaches 25, more than 6 m as a damper's displacement and more than "
+            "a turn as an angle: is it in millimetres or degrees? (fix: --units theta=mm or "
+            "--units theta=deg)",
+        ),
+        (
+            "driven",
+            "torque",
+            1.46e6,
+            "x.csv: torque reaches 1.46e+06, more than 1 MN (or MN·m), beyond any damper: is "
+            "it in N·mm? (fix: --units torque=N*mm)",
+        ),
+        (
+            "forced",
+            "input",
+            5e7,
+            "x.csv: input reaches 5e+07, more than 1 MN (or MN·m), beyond any damper: is it "
+            "in N·mm? (fix: --units input=N*mm)",
+        ),
+    ],
+)
+def test_implausible_displacement_and_force(experiment, column, value, message):
+    t = np.arange(2000) / 1000.0
+    s = np.sin(2 * np.pi * 2 * t)
+    sig = {"theta": 0.02 * s, "torque": 100.0 * np.cos(2 * np.pi * 2 * t)}
+    if experiment == "forced":
+        sig = {"theta": 0.002 * s, "input": 50.0 * np.cos(2 * np.pi * 2 * t)}
+    sig[column] = value * sig[column] / np.max(np.abs(sig[column]))
+    ds = Dataset([Run("0", t, current=0.5, **sig)], experiment, "x.csv")
+    assert _unit_warnings(ds) == [message]
+    # at the bound itself nothing is said (the bounds are in hystdisc.data.plausibility)
+    bound = {"theta": MAX_MOTION, "torque": MAX_FORCE, "input": MAX_FORCE}[column]
+    sig[column] = bound * sig[column] / np.max(np.abs(sig[column]))
+    assert _unit_warnings(Dataset([Run("0", t, current=0.5, **sig)], experiment, "x.csv")) == []
+
+
+def test_slow_motion_is_warned_even_when_finely_sampled():
+    """A 2 Hz test sampled at 20 kHz with time in ms: 20 samples per 'second', but motion at
+    0.002 'Hz' (a 500 s period)."""
+    t = np.arange(40000) / 20.0  # ms read as s
+    ds = Dataset([Run("0", t, 0.01 * np.sin(2 * np.pi * 0.002 * t), 0.0)], "release", "x.csv")
+    (text,) = _unit_warnings(ds)
+    assert text.startswith("x.csv: t gives a sampling rate of 20 Hz, a 2000 s record and ")
+    assert "motion at 0.002 Hz" in text and text.endswith("(fix: --units t=ms)")
+
+
+BUNDLED = sorted((Path(__file__).resolve().parents[2] / "data_synth").glob("*.csv"))
+
+
+@pytest.mark.parametrize("path", BUNDLED, ids=[p.stem for p in BUNDLED])
+def test_bundled_sets_have_plausible_units(path):
+    assert _unit_warnings(lambda: read_csv(path)) == []
+
+
+@pytest.mark.parametrize("name", ["utfsm_mr_damper", "boucwen_benchmark"])
+def test_real_data_have_plausible_units(data_dir, name):
+    from hystdisc.data import load
+
+    rig = Path(__file__).resolve().parents[2] / "data_synth" / "rigs" / f"{name}.toml"
+    assert _unit_warnings(lambda: load(data_dir / name, rig=rig)) == []
+
+
+def test_a_folder_in_other_units_is_warned_once(data_dir):
+    """30 MR damper files read without the rig's units (mm taken as m): one warning for
+    the dataset, not one per file."""
+    from hystdisc.data import load, read_rig
+
+    rig = read_rig(Path(__file__).resolve().parents[2] / "data_synth/rigs/utfsm_mr_damper.toml")
+    rig = {k: v for k, v in rig.items() if k not in ("units", "path")}
+    texts = _unit_warnings(lambda: load(data_dir / "utfsm_mr_damper", rig=rig))
+    assert texts == [
+        f"{data_dir / 'utfsm_mr_damper'}: theta reaches 25.63, more than 6 m as a damper's "
+        "displacement and more than a turn as an angle: is it in millimetres or degrees? "
+        "(fix: --units theta=mm or --units theta=deg)"
+    ]
