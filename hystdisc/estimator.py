@@ -46,6 +46,7 @@ from sklearn.base import BaseEstimator
 from threadpoolctl import threadpool_limits
 
 from hystdisc.closing import LoopResult, close_loop
+from hystdisc.closing.residual import NOISE_RATIO
 from hystdisc.data import (
     Dataset,
     distinct_currents,
@@ -64,6 +65,7 @@ from hystdisc.discovery import (
     describe_structure,
     differentiate,
     family_start,
+    family_starts,
     fit_shape,
 )
 from hystdisc.errors import HystdiscError, HystdiscWarning
@@ -79,6 +81,7 @@ from hystdisc.fitting import (
     predict_dataset,
     staged_fit,
 )
+from hystdisc.fitting.multistart import best_of_starts, nesting_pass, random_starts
 from hystdisc.models import FAMILIES, format_equation, get_family
 from hystdisc.registry import experiment_names, family_names, get_experiment
 from hystdisc.results import build_results
@@ -93,6 +96,8 @@ SELECTION_TIE_BIC = 2.0
 #: Levenberg-Marquardt iterations of each start of a state-space family before the best
 #: start is continued to convergence.
 SYSTEM_START_NFEV = 8
+#: Other basins of a term family's stage-1 grid among its output-error starts.
+GRID_BASINS = 2
 #: Families whose BIC lies within this of the selected one "fit equally well".
 EQUAL_FIT_BIC = 6.0
 #: A family whose held-out RMS exceeds the best family's by more than this factor is not
@@ -199,6 +204,13 @@ class Discovery(BaseEstimator):
         After the selection, the seed's flowchart (:mod:`hystdisc.fitting.staged`): the
         selected family fitted at each current level, each current law chosen by leaving
         one level out, the joint fit with the chosen laws (``staged_``; needs 3 levels).
+    n_starts : int
+        Starts of each term family's output-error fit (:mod:`hystdisc.fitting.multistart`):
+        stage 1's, up to :data:`GRID_BASINS` other basins of its shape's stage-1 grid, then
+        random perturbations of stage 1's inside the admissible box. Each runs a few
+        iterations, the best continues; the fit's notes say how many reached the optimum.
+        1: stage 1's start alone. Every family is then refitted from another family's
+        optimum when that fits better inside it (nesting consistency).
 
     Attributes
     ----------
@@ -292,6 +304,7 @@ class Discovery(BaseEstimator):
         single_current: bool = False,
         n_jobs: int | None = None,
         staged: bool = False,
+        n_starts: int = 4,
     ) -> None:
         self.experiment = experiment
         self.families = families
@@ -308,6 +321,7 @@ class Discovery(BaseEstimator):
         self.input_hold = input_hold
         self.single_current = single_current
         self.n_jobs = n_jobs
+        self.n_starts = n_starts
         self.staged = staged
 
     # -- helpers
@@ -446,6 +460,19 @@ class Discovery(BaseEstimator):
         p, _ = family_start(eq, name, s0=s0, one_level=self.single_current_)
         return p
 
+    def _family_starts(self, eq: EqData, name: str) -> list[tuple[str, dict[str, float]]]:
+        """The ``n_starts`` starts of a term family: stage 1's, other basins of its
+        shape's grid (up to :data:`GRID_BASINS`), random perturbations of stage 1's."""
+        shape = FAMILY_SHAPE[name]
+        s0 = self.stage1_[shape].s if shape in getattr(self, "stage1_", {}) else None
+        n = max(int(self.n_starts), 1)
+        basins = min(GRID_BASINS, n - 1)
+        starts = family_starts(eq, name, basins, s0=s0, one_level=self.single_current_)
+        extra = n - len(starts)
+        if extra > 0:
+            starts += random_starts(name, starts[0][1], extra, seed=self.seed)
+        return starts
+
     def _system_fit(self, name: str, base: OEFit, fd: FitData, say) -> OEFit:
         """A system family by output error from each of its starts (mapped from the
         standard Bouc-Wen fit ``base``); the best is kept, and how many starts reached it
@@ -460,37 +487,14 @@ class Discovery(BaseEstimator):
                 if k in bp:
                     st.setdefault(k, bp[k])
 
-        def one(k):
-            label, start = starts[k]
-            say(f"stage 2: output-error fit of {name}, start {k + 1}/{len(starts)} ({label})")
-            par = FamilySystemParametrization(name, fd.experiment, start, fixed=fixed)
-            return OutputErrorFitter(fd, par, max_nfev=SYSTEM_START_NFEV).fit(heldout=False)
-
+        pars = [
+            (label, FamilySystemParametrization(name, fd.experiment, start, fixed=fixed))
+            for label, start in starts
+        ]
         # every start a few iterations, then the best one to convergence
-        fits = self._map(one, list(range(len(starts))))
-        order = np.argsort([f.rss for f in fits])
-        first = fits[order[0]]
-        say(f"stage 2: output-error fit of {name} from its best start ({starts[order[0]][0]})")
-        par = FamilySystemParametrization(
-            name, fd.experiment, first.par.values(first.x), fixed=fixed
+        best = best_of_starts(
+            fd, pars, self.max_nfev, SYSTEM_START_NFEV, mapper=self._map, say=say, name=name
         )
-        best = OutputErrorFitter(fd, par, max_nfev=self.max_nfev).fit(heldout=False)
-        if best.rss > first.rss:
-            best = first
-        fits[order[0]] = best
-        reached = [starts[k][0] for k in range(len(fits)) if fits[k].rss <= 1.01 * best.rss]
-        best.notes.append(
-            f"{len(reached)} of {len(fits)} starts reached the optimum after "
-            f"{SYSTEM_START_NFEV} iterations each (RMS within 1 %: "
-            f"{', '.join(reached)})"
-            + (
-                ""
-                if len(reached) == len(fits)
-                else "; the others ended at RMS "
-                + ", ".join(f"{fits[k].rms:.4g} ({starts[k][0]})" for k in order[len(reached) :])
-            )
-        )
-        best.extra["starts"] = {starts[k][0]: fits[k].rms for k in range(len(fits))}
         if self.heldout:
             best = OutputErrorFitter(fd, best.par, max_nfev=self.max_nfev).heldout_at(best)
         return best
@@ -627,12 +631,27 @@ class Discovery(BaseEstimator):
                 return OutputErrorFitter(fd, tpar, max_nfev=self.max_nfev).fit(heldout=False)
             name = fams[k]
             say(f"stage 2: output-error fit of {name} ({k + 1}/{len(fams)})")
-            start = self._family_start(eq, name)
             fixed = {p: 0.0 for p in FAMILIES[name].current_params} if self.single_current_ else {}
-            start, norm = _normalization(name, start)
-            par = FamilyParametrization(name, eq.experiment, start, fixed=fixed, normalization=norm)
-            fitter = OutputErrorFitter(fd, par, max_nfev=self.max_nfev)
-            return fitter.fit(heldout=self.heldout)
+            pars = []
+            for label, start in self._family_starts(eq, name):
+                start, norm = _normalization(name, start)
+                pars.append(
+                    (
+                        label,
+                        FamilyParametrization(
+                            name, eq.experiment, start, fixed=fixed, normalization=norm
+                        ),
+                    )
+                )
+            return best_of_starts(
+                fd, pars, self.max_nfev, say=say, name=name, good_rms=NOISE_RATIO * fd.noise_std
+            )
+
+        def with_heldout(name):
+            fit = self.family_fits_[name]
+            if not self.heldout or fit.heldout_rms is not None:
+                return fit
+            return OutputErrorFitter(fd, fit.par, max_nfev=self.max_nfev).heldout_at(fit)
 
         def family_fit_std(eq, fd):
             say("stage 2: output-error fit of bouc-wen-std (the start of the system families)")
@@ -649,6 +668,9 @@ class Discovery(BaseEstimator):
 
         fits = self._map(family_fit, list(range(len(fams) + (0 if same else 1))))
         self.family_fits_: dict[str, OEFit] = dict(zip(fams, fits, strict=False))
+        if len(fams) > 1:  # no family ends worse than a model it contains
+            self.family_fits_ = nesting_pass(fd, self.family_fits_, self.max_nfev, say)
+        self.family_fits_ = dict(zip(fams, self._map(with_heldout, fams), strict=True))
         self.discovered_fit_ = self.family_fits_[same[0]] if same else fits[-1]
         if sys_fams:
             base = self.family_fits_.get("bouc-wen-std") or family_fit_std(eq, fd)

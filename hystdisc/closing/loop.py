@@ -93,6 +93,10 @@ from hystdisc.stats import masked, sampling_rate
 #: Local refits per round at most (two output-error leaders, the equation-error leader);
 #: the stage-1 screening may add one more.
 MAX_REFITS_PER_ROUND = 3
+#: Refits from stage-1 starts per screening at most.
+SCREEN_REFITS = 2
+#: A stage-1 start within this factor of the current RMS is refitted when screened.
+START_NEAR = 1.5
 #: An accepted effect must also remove at least this share of the residual's excess over
 #: the noise (RSS - N noise^2): a catalogued effect that only trims a structure it cannot
 #: explain (a resonance) is not reported as found, whatever the sample size makes of it.
@@ -209,6 +213,24 @@ def _start_pick(scores: list[EffectScore]) -> EffectScore | None:
     """The candidate whose stage-1 start predicts the largest BIC drop (if beyond the margin)."""
     good = [s for s in scores if s.start_dbic is not None and s.start_dbic < -EFFECT_BIC_MARGIN]
     return min(good, key=lambda s: s.start_dbic) if good else None
+
+
+def _start_picks(scores: list[EffectScore], rms: float) -> list[EffectScore]:
+    """The stage-1 starts worth a refit: :func:`_start_pick`'s, then the lowest start RMS
+    within :data:`START_NEAR` of the current ``rms`` (an unconverged start of the right
+    structure can begin above the current optimum: an offset's start at 1.26 times a
+    distorted fit's RMS converged to the noise), :data:`SCREEN_REFITS` at most."""
+    out = [s for s in [_start_pick(scores)] if s is not None]
+    near = sorted(
+        (s for s in scores if s.start_rms is not None and s.start_rms < START_NEAR * rms),
+        key=lambda s: s.start_rms,
+    )
+    for s in near:
+        if len(out) >= SCREEN_REFITS:
+            break
+        if s not in out:
+            out.append(s)
+    return out
 
 
 def _backward(data, fit, out: LoopResult, max_nfev, heldout, say, fits: dict) -> OEFit:
@@ -347,9 +369,10 @@ class _Round:
         self.say("closing the loop: stage-1 starts of the augmented structures")
         screen_starts(eq, self.data, self.current, scores, s0=s0)
         diag["candidates"] = [s.to_dict() for s in scores]
-        pick = _start_pick(scores)
-        if pick is not None:
+        for pick in _start_picks(scores, self.current.rms):
             self.attempt(pick, start=pick.start)
+            if self.done():
+                break
 
 
 def _acceptable(step: dict) -> bool:

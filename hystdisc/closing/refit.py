@@ -145,7 +145,8 @@ def stage1_start(
         The output-error data (for the number of current levels).
     s0 : ndarray, optional
         Shape constants to start the local search from (e.g. the family's own stage-1
-        shape); default: discovery's grid first.
+        shape); the shape's grid is searched too, and of the two starts the one with the
+        lower output-error RSS is returned.
 
     Returns
     -------
@@ -154,18 +155,33 @@ def stage1_start(
     """
     fam = fit.par.family
     eff_terms = [t for e in effects for t in EFFECTS[e].terms]
-    try:
-        with np.errstate(all="ignore"):
-            p, coefs = family_start(
-                eq,
-                fam.name,
-                eff_terms,
-                s0=s0,
-                one_level=current_levels(data.currents) < 2,
-                constant=False,
-            )
-    except Exception:  # noqa: BLE001 - a start is optional
-        return None
+    found = []
+    # from the family's stage-1 shape and from the shape's own grid: the first can be a
+    # basin the missing effect made (an offset absorbed by a distorted z), the second not
+    for shape0 in [s0, None] if s0 is not None else [None]:
+        try:
+            with np.errstate(all="ignore"):
+                p, coefs = family_start(
+                    eq,
+                    fam.name,
+                    eff_terms,
+                    s0=shape0,
+                    one_level=current_levels(data.currents) < 2,
+                    constant=False,
+                )
+        except Exception:  # noqa: BLE001 - a start is optional
+            continue
+        p = _with_effect_values(p, coefs, fit, effects)
+        if p is not None:
+            found.append(p)
+    if len(found) < 2:
+        return found[0] if found else None
+    rss = [_start_rss(data, fit, effects, p) for p in found]
+    return found[int(np.argmin(rss))]
+
+
+def _with_effect_values(p: dict, coefs: dict, fit: OEFit, effects: Sequence[str]) -> dict | None:
+    """A stage-1 start ``p`` with the effects' parameters from the torque ``coefs``."""
     for e in effects:
         p.update(EFFECTS[e].from_torque(coefs, p["k_s"]))
         if EFFECTS[e].structural:  # its states are not in stage 1: keep the fitted values

@@ -21,7 +21,7 @@ design           :class:`Design`, the library on the equation-error rows
 shapes           :class:`HysteresisShape` and its subclasses, :data:`SHAPES`
 varpro           :func:`varpro`, the shape constants by variable projection
 selection        :func:`fit_shape`, term selection for one shape
-starts           :func:`family_start` (stage 2's starts), :func:`describe_structure`
+starts           :func:`family_start`, :func:`family_starts` (stage 2's starts), :func:`describe_structure`
 """
 
 from hystdisc.discovery.data import EqData
@@ -35,7 +35,7 @@ from hystdisc.discovery.library import (
 )
 from hystdisc.discovery.selection import ShapeFit, fit_shape
 from hystdisc.discovery.shapes import FAMILY_SHAPE, N_RANGE, SHAPES, HysteresisShape
-from hystdisc.discovery.starts import describe_structure, family_start
+from hystdisc.discovery.starts import describe_structure, family_start, family_starts
 from hystdisc.discovery.varpro import varpro
 
 __all__ = [
@@ -51,6 +51,7 @@ __all__ = [
     "describe_structure",
     "differentiate",
     "family_start",
+    "family_starts",
     "fit_shape",
     "torque_state",
     "torque_terms_for",

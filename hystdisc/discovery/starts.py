@@ -8,7 +8,7 @@ import numpy as np
 
 from hystdisc.discovery.data import EqData
 from hystdisc.discovery.shapes import FAMILY_SHAPE, SHAPES
-from hystdisc.discovery.varpro import coef_dict, varpro
+from hystdisc.discovery.varpro import coef_dict, grid_minima, varpro
 from hystdisc.models import HYSTERESIS_TERM_NAMES, TermModel
 from hystdisc.registry import get_family, term_family_names
 
@@ -91,6 +91,53 @@ def family_start(
             v = spec.default
         p[spec.name] = float(np.clip(v, spec.lower, spec.upper))
     return p, coefs
+
+
+def family_starts(
+    eq: EqData,
+    family: str,
+    basins: int = 2,
+    s0: np.ndarray | None = None,
+    one_level: bool = False,
+) -> list[tuple[str, dict[str, float]]]:
+    """Labelled stage-1 starts of a family's output-error fit: the start from the stage-1
+    shape ``s0`` (:func:`family_start`), then one from each of up to ``basins`` other
+    basins of the shape's grid (:func:`~hystdisc.discovery.varpro.grid_minima`, at least 1
+    apart from ``s0`` in the shape's coordinates).
+
+    Examples
+    --------
+    >>> t = np.linspace(0.0, 4.0, 801)
+    >>> th, w = np.sin(3 * t), 3 * np.cos(3 * t)
+    >>> eq = EqData("driven", [t], [th], [w], [0 * t], [0.5 * np.tanh(5 * w)],
+    ...             np.array([0.0]), [np.ones(t.size, dtype=bool)])
+    >>> [label for label, _ in family_starts(eq, "dahl", basins=2, one_level=True)]
+    ['stage 1', 'stage-1 basin 2', 'stage-1 basin 3']
+    """
+    first, _ = family_start(eq, family, s0=s0, one_level=one_level)
+    out = [("stage 1", first)]
+    if basins <= 0:
+        return out
+    fam = get_family(family)
+    ft = [t for t in fam.torque_terms if not (one_level and t.startswith("i"))]
+    shape = FAMILY_SHAPE[fam.name]
+    if not SHAPES[shape].shape_names:  # no shape constants: one linear least squares
+        return out
+    # the columns family_start fits (the constant keeps an offset from ranking the grid)
+    lead = ["theta"] if eq.experiment_type.motion_imposed else ["theta", "1"]
+    pts = grid_minima(eq, shape, [*lead, *ft], basins + 1)
+    # without s0 the first start came from the grid's best point
+    ref = pts[0] if s0 is None and pts else np.asarray(s0, dtype=float)
+    k = 1
+    for g in pts:
+        if g.size == ref.size and np.max(np.abs(g - ref)) < 1.0:
+            continue
+        if len(out) > basins:
+            break
+        k += 1
+        p, _ = family_start(eq, family, s0=g, one_level=one_level)
+        out.append((f"stage-1 basin {k}", p))
+    return out
 
 
 def describe_structure(torque: Sequence[str], shape: str) -> str:

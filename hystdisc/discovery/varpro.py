@@ -81,14 +81,7 @@ def varpro(
         c, rss = scaled_lstsq(*design.build_flat(eq.z_flat(shape, np.zeros(0)), copy=False))
         return np.zeros(0), c, rss
 
-    def obj(s):
-        s = shape.clip(s, eq.scale)
-        with np.errstate(all="ignore"):
-            z = eq.z_flat(shape, s)
-            if not np.all(np.isfinite(z)) or np.abs(z).max() > 1e6:
-                return 1e300
-            return scaled_lstsq(*design.build_flat(z, copy=False))[1]
-
+    obj = _objective(eq, shape, design)
     grid = [s0] if s0 is not None else shape.grid(eq.scale)
     vals = [obj(s) for s in grid]
     best = np.asarray(grid[int(np.argmin(vals))], dtype=float)
@@ -101,6 +94,56 @@ def varpro(
     s = shape.clip(res.x if res.fun <= np.log(min(vals)) else best, eq.scale)
     c, rss = scaled_lstsq(*design.build_flat(eq.z_flat(shape, s), copy=False))
     return s, c, rss
+
+
+def _objective(eq: EqData, shape, design: Design):
+    """The torque-side RSS as a function of the shape constants (1e300 where z blows up)."""
+
+    def obj(s):
+        s = shape.clip(s, eq.scale)
+        with np.errstate(all="ignore"):
+            z = eq.z_flat(shape, s)
+            if not np.all(np.isfinite(z)) or np.abs(z).max() > 1e6:
+                return 1e300
+            return scaled_lstsq(*design.build_flat(z, copy=False))[1]
+
+    return obj
+
+
+def grid_minima(
+    eq: EqData, shape_name: str, terms: Sequence[str], k: int, min_dist: float = 1.0
+) -> list[np.ndarray]:
+    """The ``k`` points of the shape's grid with the lowest torque-side RSS, each at least
+    ``min_dist`` (max-norm, in the shape's own coordinates: log rates, splits, log
+    exponents) from every better one: the starts of distinct basins.
+
+    Examples
+    --------
+    A driven record of a damper whose torque is ``0.5 tanh(5 theta_dot)``:
+
+    >>> t = np.linspace(0.0, 4.0, 801)
+    >>> th, w = np.sin(3 * t), 3 * np.cos(3 * t)
+    >>> eq = EqData("driven", [t], [th], [w], [0 * t], [0.5 * np.tanh(5 * w)],
+    ...             np.array([0.0]), [np.ones(t.size, dtype=bool)])
+    >>> pts = grid_minima(eq, "dahl", ["theta", "theta_dot", "z"], 3)
+    >>> len(pts), all(abs(a[0] - b[0]) >= 1.0 for a, b in zip(pts, pts[1:]))
+    (3, True)
+    """
+    shape = SHAPES[shape_name]
+    if not shape.shape_names:
+        return [np.zeros(0)]
+    obj = _objective(eq, shape, Design(eq, terms))
+    grid = [np.asarray(g, dtype=float) for g in shape.grid(eq.scale)]
+    vals = np.array([obj(g) for g in grid])
+    out: list[np.ndarray] = []
+    for i in np.argsort(vals):
+        if vals[i] >= 1e300:
+            break
+        if all(np.max(np.abs(grid[i] - o)) >= min_dist for o in out):
+            out.append(grid[i])
+        if len(out) == k:
+            break
+    return out
 
 
 def coef_dict(eq: EqData, terms: Sequence[str], c: np.ndarray) -> tuple[dict[str, float], float]:

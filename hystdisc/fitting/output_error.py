@@ -326,6 +326,34 @@ class OutputErrorFitter:
         )
         return self._finish(v, nfev + used, ok, heldout, Jv)
 
+    def screen(self, max_nfev: int) -> tuple[np.ndarray, float]:
+        """A few Levenberg-Marquardt iterations from the parametrization's start, on the
+        decimated data when the record is long (:meth:`FitData.bulk`): the free parameters
+        reached and the RSS there on every sample (inf when the simulation diverges). No
+        intervals: a screen of starts, not a fit."""
+        p0 = np.concatenate([self.par.x0, self.data.nuisance_start(self.state)])
+        lo = np.concatenate([self.par.lower, np.full(self.nnu * self.data.n_runs, -np.inf)])
+        hi = np.concatenate([self.par.upper, np.full(self.nnu * self.data.n_runs, np.inf)])
+        # a state-space model is screened on every sample, as it is fitted (see fit)
+        bulk = None if isinstance(self.par, SystemParametrization) else self.data.bulk()
+        fitter = self if bulk is None else OutputErrorFitter(bulk, self.par, max_nfev)
+        try:
+            with np.errstate(all="ignore"):
+                v, _, _ = levenberg_marquardt(
+                    fitter.residuals,
+                    fitter.jacobian,
+                    p0,
+                    lo,
+                    hi,
+                    max_iter=max_nfev,
+                    gram=fitter.gram,
+                )
+        except HystdiscError:
+            return self.par.x0, float("inf")
+        with np.errstate(all="ignore"):  # the decimation keeps the runs and their starts
+            r = self.residuals(v)
+        return v[: self.npar], float(r @ r) if np.all(np.isfinite(r)) else float("inf")
+
     def _interpolated(self, coarse: OutputErrorFitter, Jc: np.ndarray) -> np.ndarray | None:
         """The Jacobian of ``coarse`` (a decimation of this fit's data) at every sample."""
         if not np.all(np.isfinite(Jc)):

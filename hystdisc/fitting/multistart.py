@@ -1,0 +1,280 @@
+"""Global output-error fits: several starts per family, the best kept, nesting kept consistent.
+
+An output-error fit is a local search: from one start it can stop in a wrong basin (a
+seed-form Bouc-Wen at 150 times the quantization floor, a Dahl whose LuGre fit is worse
+than Dahl's own). Three tools make the fits global enough to trust:
+
+1. :func:`best_of_starts` runs every start a few iterations (:data:`SCREEN_NFEV`), keeps
+   the best and continues it to convergence (given the noise floor, the first start is
+   fitted first, and the others only run when it ends above the floor); the fit's note says how many starts reached
+   the optimum (RMS within :data:`REACHED_RTOL`) and the spread when they disagree, and
+   ``fit.extra["starts"]`` holds every start's RMS.
+2. :func:`random_starts` perturbs a start inside the admissible box (log-uniform factors
+   up to :data:`RANDOM_FACTOR` on every free parameter, the exponents additively).
+3. :func:`nesting_pass`: the optimum of every other family, mapped through the term form
+   (:func:`mapped_start`; Dahl into LuGre, seed-form into standard Bouc-Wen and back), is
+   simulated once in each family; when it fits better than the family's own optimum the
+   family contains that model there and is refitted from it. A family then never ends
+   with a worse fit than a family it contains.
+
+Examples
+--------
+>>> from hystdisc.models import Model
+>>> p = random_starts("dahl", Model("dahl").params, 2, seed=0)
+>>> [label for label, _ in p]
+['random 1', 'random 2']
+>>> all(0.2 < s["rho"] / 20.0 < 5 for _, s in p)
+True
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+
+import numpy as np
+
+from hystdisc.fitting.data import FitData
+from hystdisc.fitting.output_error import OEFit, OutputErrorFitter
+from hystdisc.fitting.parametrization import Parametrization
+from hystdisc.models import RIG_PARAMS, get_family
+
+#: Levenberg-Marquardt iterations of each start before the best is continued.
+SCREEN_NFEV = 8
+#: A start "reached the optimum" when its RMS is within this relative distance of it.
+REACHED_RTOL = 0.01
+#: Random starts scale each free parameter by a log-uniform factor up to this.
+RANDOM_FACTOR = 3.0
+#: Random starts move the exponents (``n``, shape exponents) by up to this.
+EXPONENT_STEP = 1.0
+#: A mapped optimum refits a family when it fits better than the family's optimum by
+#: more than this relative RSS.
+NESTING_RTOL = 1e-3
+
+Say = Callable[[str], None]
+
+
+def _quiet(msg: str) -> None:
+    return None
+
+
+def best_of_starts(
+    data: FitData,
+    starts: Sequence[tuple[str, Parametrization]],
+    max_nfev: int,
+    screen_nfev: int = SCREEN_NFEV,
+    mapper: Callable | None = None,
+    say: Say = _quiet,
+    name: str = "",
+    good_rms: float | None = None,
+) -> OEFit:
+    """The best fit of several starts (see the module docstring).
+
+    With ``good_rms`` the first start is fitted to convergence first; when it ends at or
+    below ``good_rms`` (the noise floor: no start can fit better than the noise) the
+    other starts are not run, and the note says so. Otherwise the other starts are
+    screened; the best of them is continued when its screen already fits better than the
+    first start's optimum, and the better of the two fits is kept.
+
+    Parameters
+    ----------
+    data : FitData
+        The runs.
+    starts : sequence of (label, Parametrization)
+        Each start's label and parametrization (its ``x0`` is the start).
+    max_nfev : int
+        Iterations of the continued fit.
+    screen_nfev : int
+        Iterations of each start (a single start is fitted to ``max_nfev`` directly).
+    mapper : callable, optional
+        ``mapper(fn, items)`` -> list, to run the starts in parallel (default: in turn).
+    say : callable
+        Progress messages.
+    name : str
+        The family, for the messages.
+    good_rms : float, optional
+        The RMS at which a fit is at the noise floor (see above).
+
+    Returns
+    -------
+    OEFit
+        The best fit (no held-out error: ask :meth:`OutputErrorFitter.heldout_at`), with
+        the note on the starts and ``extra["starts"]`` (label -> RMS).
+    """
+    if not starts:
+        raise ValueError("best_of_starts needs at least one start")
+    if len(starts) == 1:
+        return OutputErrorFitter(data, starts[0][1], max_nfev=max_nfev).fit(heldout=False)
+    labels = [label for label, _ in starts]
+    lead = None
+    if good_rms is not None:
+        with np.errstate(all="ignore"):
+            lead = OutputErrorFitter(data, starts[0][1], max_nfev=max_nfev).fit(heldout=False)
+        if lead.rms <= good_rms:
+            lead.notes.append(
+                f"the first of {len(starts)} starts ({labels[0]}) reached the noise floor "
+                f"(RMS {lead.rms:.4g}): the others were not needed"
+            )
+            lead.extra["starts"] = {labels[0]: float(lead.rms)}
+            return lead
+
+    def one(k: int) -> tuple[np.ndarray, float]:
+        label, par = starts[k]
+        say(f"stage 2: output-error fit of {name}, start {k + 1}/{len(starts)} ({label})")
+        return OutputErrorFitter(data, par, max_nfev=screen_nfev).screen(screen_nfev)
+
+    run = list(range(1 if lead is not None else 0, len(starts)))
+    screened = list((mapper or (lambda f, it: [f(i) for i in it]))(one, run))
+    n_obs = max(sum(int(m.sum()) for m in data.mask), 1)
+    rms = {
+        labels[k]: float(np.sqrt(rss / n_obs)) for k, (_, rss) in zip(run, screened, strict=True)
+    }
+    pick = int(np.argmin([rss for _, rss in screened]))
+    k_pick = run[pick]
+    x_pick = screened[pick][0]
+    if lead is None or screened[pick][1] < lead.rss:
+        # the best screened start is continued (given a converged first start, only when
+        # its screen already fits better: a basin the first start did not reach)
+        say(f"stage 2: output-error fit of {name} from its best start ({labels[k_pick]})")
+        par0 = starts[k_pick][1]
+        par = par0.like(par0.params(x_pick), par0.effects)
+        with np.errstate(all="ignore"):
+            best = OutputErrorFitter(data, par, max_nfev=max_nfev).fit(heldout=False)
+        rms[labels[k_pick]] = float(best.rms)
+    else:
+        best = lead
+    if lead is not None:
+        rms[labels[0]] = float(lead.rms)
+        if lead.rss < best.rss:
+            best = lead
+    top = min(rms.values())
+    reached = [lb for lb in labels if rms[lb] <= (1 + REACHED_RTOL) * top]
+    others = sorted((lb for lb in labels if lb not in reached), key=lambda lb: rms[lb])
+    how = (
+        f"the first fitted to convergence, the others screened {screen_nfev} iterations"
+        if lead is not None
+        else f"each screened {screen_nfev} iterations"
+    )
+    best.notes.append(
+        f"{len(reached)} of {len(labels)} starts reached the optimum ({how}, the best "
+        f"continued; RMS within {REACHED_RTOL:.0%}: {', '.join(reached)})"
+        + (
+            "; the others ended at RMS " + ", ".join(f"{rms[lb]:.4g} ({lb})" for lb in others)
+            if others
+            else ""
+        )
+    )
+    best.extra["starts"] = rms
+    return best
+
+
+def random_starts(
+    family: str, start: Mapping[str, float], n: int, seed: int = 0
+) -> list[tuple[str, dict[str, float]]]:
+    """``n`` random perturbations of ``start`` inside the family's admissible box.
+
+    Every parameter with a nonzero value is scaled by a log-uniform factor in
+    ``[1/RANDOM_FACTOR, RANDOM_FACTOR]`` (its sign kept), the exponents (parameters named
+    ``n``) moved by up to :data:`EXPONENT_STEP`; each value is clipped inside its bounds.
+    """
+    fam = get_family(family)
+    specs = {p.name: p for p in (*fam.params, *RIG_PARAMS)}
+    rng = np.random.default_rng(seed)
+    out = []
+    for k in range(n):
+        p = dict(start)
+        for name, v in start.items():
+            spec = specs.get(name)
+            if spec is None or not np.isfinite(v):
+                continue
+            if name == "n":
+                new = v + rng.uniform(-EXPONENT_STEP, EXPONENT_STEP)
+            elif v != 0.0:
+                new = v * float(np.exp(rng.uniform(-1.0, 1.0) * np.log(RANDOM_FACTOR)))
+            else:
+                continue
+            p[name] = float(np.clip(new, spec.lower, spec.upper))
+        out.append((f"random {k + 1}", p))
+    return out
+
+
+def mapped_start(family: str, fit: OEFit) -> dict[str, float] | None:
+    """Another family's optimum in ``family``'s parameters, through the term form (None
+    when the other fit is a state-space model or the mapping fails or leaves the bounds
+    with non-finite values)."""
+    fam = get_family(family)
+    if fam.is_system or fit.is_system:
+        return None
+    tm = fit.term_part
+    try:
+        with np.errstate(all="ignore"):
+            p = fam.from_terms(tm)
+    except (KeyError, ValueError, ZeroDivisionError, NotImplementedError):
+        return None
+    p = {k: float(v) for k, v in p.items()}
+    for extra in ("k_s", "J"):
+        if extra in fit.params:
+            p.setdefault(extra, float(fit.params[extra]))
+    if not all(np.isfinite(v) for v in p.values()):
+        return None
+    specs = {s.name: s for s in (*fam.params, *RIG_PARAMS)}
+    for k, v in p.items():
+        if k in specs:
+            p[k] = float(np.clip(v, specs[k].lower, specs[k].upper))
+    return p
+
+
+def start_rss(data: FitData, par: Parametrization, nuisance: np.ndarray | None = None) -> float:
+    """RSS of ``par`` at its start, with the initial states ``nuisance`` (e.g. those of the
+    fit the start was mapped from, when they are laid out alike) or the runs' first
+    samples."""
+    fitter = OutputErrorFitter(data, par)
+    nu = data.nuisance_start(par.has_state())
+    if nuisance is not None and np.size(nuisance) == nu.size:
+        nu = np.asarray(nuisance, dtype=float).ravel()
+    v = np.concatenate([par.x0, nu])
+    with np.errstate(all="ignore"):
+        r = fitter.residuals(v)
+    return float(r @ r) if np.all(np.isfinite(r)) else float("inf")
+
+
+def nesting_pass(
+    data: FitData,
+    fits: dict[str, OEFit],
+    max_nfev: int,
+    say: Say = _quiet,
+) -> dict[str, OEFit]:
+    """Refit each family from another family's optimum when that optimum, mapped into it,
+    fits better than its own (see the module docstring). Returns the updated fits (the
+    same objects where nothing changed); each refit carries a note."""
+    out = dict(fits)
+    for name, fit in fits.items():
+        if fit.is_system:
+            continue
+        best_rss, source = fit.rss, None
+        for other, ofit in fits.items():
+            if other == name or not ofit.rss < fit.rss * (1 - NESTING_RTOL):
+                continue
+            p = mapped_start(name, ofit)
+            if p is None:
+                continue
+            par = fit.par.like(p, fit.par.effects)
+            rss = start_rss(data, par, ofit.nuisance)
+            if rss < best_rss * (1 - NESTING_RTOL):
+                best_rss, source = rss, (other, par)
+        if source is None:
+            continue
+        other, par = source
+        say(f"stage 2: {name} refitted from the optimum of {other} (it fits better there)")
+        with np.errstate(all="ignore"):
+            new = OutputErrorFitter(data, par, max_nfev=max_nfev).fit(heldout=False)
+        if new.rss < fit.rss:
+            new.notes.extend(fit.notes)
+            new.notes.append(
+                f"refitted from the optimum of {other}, which it contains and which fitted "
+                f"better (RMS {fit.rms:.4g} -> {new.rms:.4g}): a family never ends worse "
+                "than a model it contains"
+            )
+            new.extra.update({k: v for k, v in fit.extra.items() if k not in new.extra})
+            new.extra["nested_from"] = other
+            out[name] = new
+    return out
