@@ -52,6 +52,7 @@ from hystdisc.data import (
     distinct_currents,
     estimate_noise,
     filter_windows,
+    measurement_noise,
     trim_release,
     validate,
 )
@@ -217,7 +218,11 @@ class Discovery(BaseEstimator):
     experiment_ : str
         The experiment type the data were read as.
     noise_std_ : float
-        Estimated measurement noise of the output (data units).
+        Estimated measurement noise of the output (data units): ``noise_.std``.
+    noise_ : NoiseEstimate
+        How it was estimated (period-to-period differences, high-order differences or the
+        quantization floor), each run's estimates, the encoder of the angle
+        (:func:`hystdisc.data.measurement_noise`).
     n_runs_ : int
         Number of runs (after trimming).
     currents_ : ndarray
@@ -370,8 +375,10 @@ class Discovery(BaseEstimator):
                 f"{dataset.source}: a {exp.name} experiment needs {'an' if col[0] in 'aeiou' else 'a'}"
                 f" {col} column; fix: add it or use --experiment release"
             )
-        noises = [estimate_noise(getattr(r, exp.output), r.fs) for r in runs]
-        noise = float(np.median(noises))
+        # the measurement, modelled: period-to-period differences of a periodic excitation,
+        # the quantization floor of an encoder (the differentiation keeps theta_noise)
+        self.noise_ = measurement_noise(runs, exp)
+        noise = self.noise_.std
         theta_noise = float(np.median([estimate_noise(r.theta, r.fs) for r in runs]))
         if exp.starts_at_rest:
             runs = [trim_release(r, theta_noise) for r in runs]
@@ -715,6 +722,7 @@ class Discovery(BaseEstimator):
                 progress=say,
                 envelope=self.envelope_,
                 decided=self._decided_by_staged(),
+                noise_samples=self.noise_.samples,
             )
         self.final_fit_ = selected if self.loop_ is None else self.loop_.fit
         self.effects_ = [] if self.loop_ is None else list(self.loop_.effects)

@@ -206,6 +206,10 @@ def test_every_attribute_is_documented():
 #: end of ``final``.
 NEW_TOP = ["conditions", "envelope", "selection_note", "system_model"]
 NEW_FAMILY = ["admissible", "violations"]
+#: Keys the measurement model added (issue 16 item 3; free keys, no schema change): at the
+#: top after the schema-3 keys, in the residual after ``peak_q``.
+NEW_TOP += ["noise", "encoder"]
+NEW_RESIDUAL = ["whiteness_test", "ljung_box_p"]
 
 
 def _after(keys: list[str], anchor: str, new: list[str]) -> list[str]:
@@ -228,7 +232,8 @@ def test_real_fit_has_todays_keys_plus_schema_version(small_fit):
         assert e["heldout_rms_after"] < e["heldout_rms_before"]
     assert summary["conditions"]["heldout_by"] == "run"
     assert summary["envelope"]["theta_max"] == pytest.approx(0.3, rel=0.05)
-    assert list(summary["residual"]) == list(old["residual"])
+    assert list(summary["residual"]) == _after(list(old["residual"]), "peak_q", NEW_RESIDUAL)
+    assert summary["noise"]["method"] == "differences" and summary["encoder"] is None
     # typed attributes read the same values
     res = disc.results_
     assert res.families["dahl"].rms == summary["families"]["dahl"]["rms"]

@@ -1,4 +1,5 @@
-"""Residual diagnostics: whiteness (Ljung-Box) and the dominant frequency of what remains.
+"""Residual diagnostics: whiteness (Ljung-Box, or against the noise's own spectrum) and the
+dominant frequency of what remains.
 
 Examples
 --------
@@ -19,6 +20,14 @@ from scipy import signal, stats
 
 #: Ljung-Box p-value below which a residual counts as not white.
 WHITE_P = 0.01
+#: Longest segment of :func:`noise_whiteness` (its frequency resolution is fs / this).
+MAX_NPERSEG = 256
+#: Dynamic range of the noise spectrum that :func:`noise_whiteness` trusts (power ratio).
+DYNAMIC_RANGE = 1e-7
+#: ``whiteness_test`` of a residual judged against white noise (Ljung-Box, pooled).
+WHITE_TEST = "ljung-box"
+#: ``whiteness_test`` of a residual judged against the noise's own spectrum.
+NOISE_TEST = "noise spectrum"
 
 
 def autocorrelation(x: np.ndarray, max_lag: int) -> np.ndarray:
@@ -175,9 +184,116 @@ def dominant_frequency(x: np.ndarray, fs: float) -> float:
     return spectral_peak(f, p, f_min=res)[0]
 
 
-def residual_summary(residuals: list[np.ndarray], fs: float, noise_std: float) -> dict:
-    """``rms``, ``whiteness_p`` (Ljung-Box pooled over runs) and ``dominant_hz`` (None when
-    the residual is white).
+def _segment_power(records: list[np.ndarray], nper: int) -> tuple[np.ndarray, int]:
+    """Mean Hann-windowed periodogram of the non-overlapping ``nper``-sample segments of
+    every record (each segment's mean removed), and the number of segments."""
+    win = signal.windows.hann(nper, sym=False)
+    acc = np.zeros(nper // 2 + 1)
+    count = 0
+    for x in records:
+        k = x.size // nper
+        if k == 0:
+            continue
+        seg = x[: k * nper].reshape(k, nper)
+        seg = (seg - seg.mean(axis=1, keepdims=True)) * win
+        acc += np.sum(np.abs(np.fft.rfft(seg, axis=1)) ** 2, axis=0)
+        count += k
+    return (acc / count if count else acc), count
+
+
+def noise_whiteness(
+    residuals: list[np.ndarray],
+    noise_samples: list[np.ndarray],
+    fs: float,
+    max_nperseg: int = MAX_NPERSEG,
+) -> tuple[float, float | None, float | None]:
+    """Test that the residual has the noise's own spectrum (coloured noise is no structure).
+
+    Both the residual and a sample of the noise (period-to-period differences over
+    ``sqrt(2)``, :func:`hystdisc.data.period_noise`) are cut into non-overlapping
+    Hann-windowed segments of one length, and their mean periodograms are compared bin by
+    bin: under the hypothesis that the residual is that noise, the ratio of the two in a
+    bin follows an F distribution with ``2 K_res`` and ``2 K_noise`` degrees of freedom
+    (``K`` segments each). The p-value is the smallest bin's, times the number of bins
+    (Bonferroni); it is small when the residual has power the noise lacks at some
+    frequency, whatever the noise's own spectrum (band-limited, coloured). Where the
+    noise's power is more than 70 dB below its peak (:data:`DYNAMIC_RANGE`), the window's
+    leakage dominates and the noise's power is taken at that floor.
+
+    Parameters
+    ----------
+    residuals : list of ndarray
+        One residual record per run.
+    noise_samples : list of ndarray
+        Samples of the noise on the same channel, at the same sampling rate.
+    fs : float
+        Sampling rate in Hz.
+    max_nperseg : int
+        Longest segment (frequency resolution ``fs / nperseg``); shorter when the records
+        hold fewer than 8 segments of it.
+
+    Returns
+    -------
+    p : float
+        The p-value (1.0 when the records are too short to tell).
+    f_excess : float or None
+        Frequency (Hz) of the largest excess of the residual's power over the noise's.
+    ratio : float or None
+        The residual's power over the noise's at that frequency.
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(2)
+    >>> b, a = signal.butter(4, 0.3)  # noise band-limited to 30 % of the Nyquist frequency
+    >>> coloured = lambda n: signal.lfilter(b, a, rng.normal(size=n))
+    >>> res, sample = [coloured(8000)], [coloured(8000)]
+    >>> ljung_box_pooled(res) < 1e-10  # "not white" by Ljung-Box
+    True
+    >>> noise_whiteness(res, sample, 1000.0)[0] > 0.01  # but it is the noise
+    True
+    >>> t = np.arange(8000) / 1000.0
+    >>> p, f, r = noise_whiteness([res[0] + 0.5 * np.sin(2 * np.pi * 104 * t)], sample, 1000.0)
+    >>> p < 1e-6, round(f)
+    (True, 104)
+    """
+    res = [np.asarray(r, dtype=float) for r in residuals if len(r) >= 16]
+    noi = [np.asarray(r, dtype=float) for r in noise_samples if len(r) >= 16]
+    if not res or not noi:
+        return 1.0, None, None
+    n_res, n_noi = sum(x.size for x in res), sum(x.size for x in noi)
+    longest = min(max(x.size for x in res), max(x.size for x in noi))
+    cap = min(max_nperseg, longest, n_res // 8, n_noi // 8)
+    if cap < 16:
+        return 1.0, None, None
+    nper = 2 ** int(np.log2(cap))
+    p_res, k_res = _segment_power(res, nper)
+    p_noi, k_noi = _segment_power(noi, nper)
+    inner = slice(1, nper // 2)  # no DC (mean removed) and no Nyquist bin
+    pr, pn = p_res[inner], p_noi[inner]
+    if pr.size == 0 or not np.any(pn > 0):
+        return 1.0, None, None
+    # beyond DYNAMIC_RANGE below the noise's peak the window's leakage dominates both
+    # estimates and their ratio is no longer F-distributed: the noise is floored there
+    ratio = pr / np.maximum(pn, DYNAMIC_RANGE * float(np.max(pn)))
+    p_bins = stats.f.sf(ratio, 2 * k_res, 2 * k_noi)
+    p = float(min(1.0, pr.size * float(np.min(p_bins))))
+    j = int(np.argmax(ratio))
+    f = np.fft.rfftfreq(nper, 1.0 / fs)[inner]
+    fj = float(f[j])
+    if 1 <= j < ratio.size - 1 and np.all(ratio[j - 1 : j + 2] > 0):
+        a, b, c = np.log(ratio[j - 1 : j + 2])  # parabolic interpolation on log power
+        den = a - 2 * b + c
+        fj += float(np.clip(0.5 * (a - c) / den if den != 0 else 0.0, -0.5, 0.5)) * fs / nper
+    return p, fj, float(ratio[j])
+
+
+def residual_summary(
+    residuals: list[np.ndarray],
+    fs: float,
+    noise_std: float,
+    noise_samples: list[np.ndarray] | None = None,
+) -> dict:
+    """``rms``, ``whiteness_p`` and ``dominant_hz`` (None when the residual is white).
 
     Parameters
     ----------
@@ -187,18 +303,27 @@ def residual_summary(residuals: list[np.ndarray], fs: float, noise_std: float) -
         Sampling rate in Hz.
     noise_std : float
         Estimated measurement noise (data units).
+    noise_samples : list of ndarray, optional
+        A sample of the noise (period-to-period differences): whiteness is then judged
+        against its spectrum (:func:`noise_whiteness`) instead of white noise
+        (Ljung-Box pooled over runs).
 
     Returns
     -------
     dict
-        ``{"rms", "whiteness_p", "dominant_hz", "rms_over_noise"}``.
+        ``{"rms", "whiteness_p", "dominant_hz", "rms_over_noise", "whiteness_test",
+        "ljung_box_p"}``.
     """
     res = [np.asarray(r, dtype=float) for r in residuals if len(r) > 10]
     allr = np.concatenate(res) if res else np.zeros(1)
     rms = float(np.sqrt(np.mean(allr**2)))
-    p = ljung_box_pooled(res)
-    dom = None
-    if p < WHITE_P and res:
+    lb = ljung_box_pooled(res)
+    p, test, dom = lb, WHITE_TEST, None
+    if noise_samples:
+        p, f_excess, _ = noise_whiteness(res, noise_samples, fs)
+        test = NOISE_TEST
+        dom = f_excess if p < WHITE_P else None
+    elif p < WHITE_P and res:
         f, psd, resolution = residual_spectrum(res, fs)
         fk = spectral_peak(f, psd, f_min=resolution)[0]
         dom = fk if np.isfinite(fk) else None
@@ -207,4 +332,6 @@ def residual_summary(residuals: list[np.ndarray], fs: float, noise_std: float) -
         "whiteness_p": p,
         "dominant_hz": dom,
         "rms_over_noise": rms / noise_std if noise_std > 0 else None,
+        "whiteness_test": test,
+        "ljung_box_p": lb,
     }

@@ -40,7 +40,8 @@ family:
    accepted. Only candidates with evidence are refitted: on data the model explains, the
    loop costs one Jacobian.
 4. **Whiteness** (:func:`~hystdisc.closing.residual.assess_residual`): the final residual is tested by a Ljung-Box
-   test pooled over runs and its spectrum is averaged over runs. When it is not white and
+   test pooled over runs and its spectrum is averaged over runs; with a sample of the
+   noise (a periodic excitation), against the noise's own spectrum instead. When it is not white and
    its RMS is clearly above the noise (:data:`NOISE_RATIO`), ``unexplained`` is set with
    the dominant frequency and a sentence such as "a resonance near 6.0 Hz that no
    catalogued effect explains".
@@ -420,6 +421,7 @@ def augment(
     s0: np.ndarray | None = None,
     envelope: Envelope | None = None,
     decided: dict[str, str] | None = None,
+    noise_samples: list[np.ndarray] | None = None,
 ) -> LoopResult:
     """Diagnose, add the effects that improve BIC, and test the final residual.
 
@@ -458,6 +460,12 @@ def augment(
         The family's stage-1 shape constants (start of the stage-1 screening's search).
     envelope : Envelope, optional
         The training envelope (default: measured on ``data``).
+    decided : dict of str to str, optional
+        Effects an earlier step decided (name -> why): not candidates.
+    noise_samples : list of ndarray, optional
+        A sample of the measurement noise (period-to-period differences): the final
+        residual's whiteness is judged against its spectrum
+        (:func:`~hystdisc.closing.residual.assess_residual`).
 
     Returns
     -------
@@ -581,6 +589,7 @@ def augment(
         fs,
         noise_std,
         natural_frequency(current, data.experiment),
+        noise_samples,
     )
     out.residual["noise_used"] = noise_std
     return out
@@ -598,6 +607,7 @@ def close_loop(
     progress: Callable[[str], None] | None = None,
     envelope: Envelope | None = None,
     decided: dict[str, str] | None = None,
+    noise_samples: list[np.ndarray] | None = None,
 ) -> LoopResult:
     """Close the loop on the fit of the selected (or declared) family.
 
@@ -628,6 +638,9 @@ def close_loop(
     decided : dict of str to str, optional
         Effects an earlier step decided (name -> why): not candidates (e.g. the current
         laws the staged fit chose decide ``current_saturation``).
+    noise_samples : list of ndarray, optional
+        A sample of the measurement noise (:attr:`hystdisc.data.NoiseEstimate.samples`):
+        the final residual is judged against its spectrum, not against white noise.
 
     Returns
     -------
@@ -648,6 +661,7 @@ def close_loop(
             s0=s0,
             envelope=envelope,
             decided=decided,
+            noise_samples=noise_samples,
         )
     except (HystdiscError, np.linalg.LinAlgError, ValueError, FloatingPointError) as exc:
         name = getattr(getattr(fit.par, "family", None), "name", "the fit")
@@ -663,5 +677,6 @@ def close_loop(
         sampling_rate(data.t),
         noise,
         natural_frequency(fit, data.experiment),
+        noise_samples,
     )
     return loop

@@ -1,16 +1,29 @@
 """The verdict on the final residual: whiteness, spectrum and the simulator's floor.
 
 :func:`assess_residual` tests the residual by a Ljung-Box test pooled over runs and
-averages its spectrum over runs. When it is not white and its RMS is clearly above the
-noise (:data:`NOISE_RATIO`), it is *unexplained*, with the dominant frequency and a
-sentence such as "a resonance near 6.0 Hz that no catalogued effect explains".
+averages its spectrum over runs; when a sample of the noise is known (period-to-period
+differences of a periodic excitation), the residual is judged against the noise's own
+spectrum instead (:func:`~hystdisc.closing.diagnostics.noise_whiteness`), so that
+band-limited or coloured noise is not taken for structure. When it is not white and its
+RMS is clearly above the noise (:data:`NOISE_RATIO`), it is *unexplained*, with the
+dominant frequency and a sentence such as "a resonance near 6.0 Hz that no catalogued
+effect explains". A residual at the noise level (RMS at most :data:`NOISE_RATIO` times
+the noise) is never unexplained, white or not.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from hystdisc.closing.diagnostics import WHITE_P, ljung_box_pooled, residual_spectrum, spectral_peak
+from hystdisc.closing.diagnostics import (
+    NOISE_TEST,
+    WHITE_P,
+    WHITE_TEST,
+    ljung_box_pooled,
+    noise_whiteness,
+    residual_spectrum,
+    spectral_peak,
+)
 from hystdisc.fitting import FitData, OEFit
 from hystdisc.registry import get_experiment
 
@@ -49,6 +62,7 @@ def assess_residual(
     fs: float,
     noise_std: float,
     natural_hz: float | None = None,
+    noise_samples: list[np.ndarray] | None = None,
 ) -> tuple[dict, bool, str | None]:
     """Whiteness and spectrum of the final residual.
 
@@ -62,12 +76,18 @@ def assess_residual(
         Estimated measurement noise.
     natural_hz : float, optional
         The rig's own frequency, to name a misfit of the main oscillation as such.
+    noise_samples : list of ndarray, optional
+        A sample of the noise on the same channel (period-to-period differences over
+        ``sqrt(2)``): the whiteness is judged against its spectrum.
 
     Returns
     -------
     residual : dict
-        ``rms``, ``whiteness_p`` (Ljung-Box pooled over runs), ``dominant_hz`` (None when
-        white), ``rms_over_noise`` and ``peak_q`` (quality factor of the spectral peak).
+        ``rms``, ``whiteness_p`` (of the test named by ``whiteness_test``: ``ljung-box``
+        pooled over runs, or ``noise spectrum``), ``ljung_box_p``, ``dominant_hz`` (None
+        when white; with a noise sample, the frequency of the largest excess over the
+        noise's spectrum), ``rms_over_noise`` and ``peak_q`` (quality factor of the
+        spectral peak).
     unexplained : bool
         Not white and RMS above ``NOISE_RATIO`` times the noise.
     text : str or None
@@ -90,7 +110,11 @@ def assess_residual(
     res = [np.asarray(r, dtype=float) for r in residuals if len(r) > 10]
     allr = np.concatenate(res) if res else np.zeros(1)
     rms = float(np.sqrt(np.mean(allr**2)))
-    p = ljung_box_pooled(res)
+    lb = ljung_box_pooled(res)
+    p, test, f_excess = lb, WHITE_TEST, None
+    if noise_samples:
+        p, f_excess, _ = noise_whiteness(res, noise_samples, fs)
+        test = NOISE_TEST
     ratio = rms / noise_std if noise_std > 0 else float("inf")
     out = {
         "rms": rms,
@@ -98,9 +122,13 @@ def assess_residual(
         "dominant_hz": None,
         "rms_over_noise": ratio if np.isfinite(ratio) else None,
         "peak_q": None,
+        "whiteness_test": test,
+        "ljung_box_p": lb,
     }
     structured = p < WHITE_P
-    if structured and res:
+    if structured and f_excess is not None:  # where the residual exceeds the noise
+        out["dominant_hz"] = f_excess
+    elif structured and res:
         f, psd, resolution = residual_spectrum(res, fs)
         fk, q = spectral_peak(f, psd, f_min=resolution)
         if np.isfinite(fk):
@@ -118,6 +146,8 @@ def assess_residual(
             f"a misfit of the rig's own oscillation near {fk:.1f} Hz {tail}: the damper law "
             "itself may be wrong (try another family, or discover without --model)"
         )
+    elif test == NOISE_TEST:
+        text = f"power above the noise's own spectrum, most near {fk:.1f} Hz, {tail}"
     elif (out["peak_q"] or 0.0) >= 2.0:
         text = f"a resonance near {fk:.1f} Hz {tail}"
     else:

@@ -33,6 +33,9 @@ The modules, one job each:
 ``validation``    :func:`validate` and the checks of the motion
 ``plausibility``  :func:`implausible_units`: magnitudes that do not fit a unit
 ``preprocessing`` :func:`estimate_noise`, :func:`trim_release`
+``quantization``  :func:`detect_quantization`: an encoder's step and counts
+``noise``         :func:`measurement_noise`: period-to-period differences, the
+                  quantization floor (:class:`NoiseEstimate`)
 ``writers``       :func:`atomic_write_bytes`, :func:`atomic_write_text`,
                   :func:`write_csv`
 ================  ===========================================================
@@ -52,8 +55,10 @@ from hystdisc.data.csvfile import read_csv
 from hystdisc.data.dataset import CANONICAL_COLUMNS, EXPERIMENTS, Dataset, Run, distinct_currents
 from hystdisc.data.loading import load
 from hystdisc.data.mat import read_mat
+from hystdisc.data.noise import NoiseEstimate, detect_period, measurement_noise, period_noise
 from hystdisc.data.plausibility import ImplausibleUnitsWarning, implausible_units
 from hystdisc.data.preprocessing import estimate_noise, trim_release
+from hystdisc.data.quantization import Quantization, detect_quantization
 from hystdisc.data.rigs import filter_windows, motion_frequency, read_rig
 from hystdisc.data.table import read_table
 from hystdisc.data.text import parse_toml
@@ -72,15 +77,21 @@ __all__ = [
     "LOCKED_RATIO",
     "MIN_SAMPLES",
     "Dataset",
+    "NoiseEstimate",
+    "Quantization",
     "Run",
     "atomic_write_bytes",
     "atomic_write_text",
     "current_from_name",
+    "detect_period",
+    "detect_quantization",
     "distinct_currents",
     "estimate_noise",
     "implausible_units",
     "load",
+    "measurement_noise",
     "parse_toml",
+    "period_noise",
     "read_csv",
     "read_mat",
     "read_rig",

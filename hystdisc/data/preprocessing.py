@@ -19,14 +19,21 @@ import numpy as np
 from hystdisc.data.dataset import Run
 from hystdisc.errors import input_error
 
-__all__ = ["estimate_noise", "trim_release"]
+__all__ = ["estimate_noise", "screened_rms", "trim_release"]
 
 
-def _screened_rms(d: np.ndarray) -> float:
+def screened_rms(d: np.ndarray) -> float:
     """RMS of ``d`` after iterative 5-sigma clipping (drops spikes, keeps the noise).
 
     Unlike a MAD scale, this stays exact for uniform (quantization) noise and does not
     collapse when most differences of a quantized signal are exactly zero.
+
+    Examples
+    --------
+    >>> d = np.ones(1000)
+    >>> d[::100] = 1e3  # ten spikes
+    >>> screened_rms(d)
+    1.0
     """
     keep = np.ones(d.size, dtype=bool)
     s = float(np.sqrt(np.mean(d * d)))
@@ -88,7 +95,7 @@ def estimate_noise(theta: np.ndarray, fs: float | None = None) -> float:
     estimates = []
     for k in range(2, 7):
         d = np.diff(x, k) / math.sqrt(math.comb(2 * k, k))
-        estimates.append(_screened_rms(d))
+        estimates.append(screened_rms(d))
     return float(min(estimates))
 
 

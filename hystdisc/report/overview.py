@@ -31,6 +31,7 @@ class OverviewSections:
             ["experiment", d.experiment or ""],
             ["runs", f"{self.fd.n_runs} (currents {currents_text(self.fd.currents)} A)"],
             ["noise (estimated)", num(d.noise_std, ".3g")],
+            *[[k.lower(), v] for k, _, v in (x.partition(": ") for x in d.measurement_lines())],
             ["discovered structure", d.discovered.name if d.discovered else ""],
             [f"{sel} family", d.family or ""],
         ]

@@ -224,7 +224,11 @@ def residual_sentence(res: ResidualSummary) -> str:
     out = f"RMS {num(res.rms)}"
     if res.rms_over_noise is not None:
         out += f" ({num(res.rms_over_noise, '.2f')}x the noise)"
-    out += f", Ljung-Box whiteness p = {num(wp, '.3g')} ({'white' if white else 'not white'})"
+    if res.whiteness_test == "noise spectrum":
+        verdict = "as the noise" if white else "above the noise"
+        out += f", whiteness against the noise's own spectrum p = {num(wp, '.3g')} ({verdict})"
+    else:
+        out += f", Ljung-Box whiteness p = {num(wp, '.3g')} ({'white' if white else 'not white'})"
     if res.dominant_hz is not None:
         out += f", dominant frequency {num(res.dominant_hz, '.3g')} Hz"
     return out

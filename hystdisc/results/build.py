@@ -189,7 +189,8 @@ def _no_loop_residual(disc: Any, dataset: Any) -> dict:
     sel = disc.family_fits_[disc.family_]
     fs = float(np.median([r.fs for r in dataset.runs]))
     masked = [r[m] for r, m in zip(sel.residuals, disc.fit_data_.mask, strict=True)]
-    return residual_summary(masked, fs, disc.noise_std_)
+    noise = getattr(disc, "noise_", None)
+    return residual_summary(masked, fs, disc.noise_std_, noise.samples if noise else None)
 
 
 def build_results(disc: Any, dataset: Any) -> Results:
@@ -201,7 +202,7 @@ def build_results(disc: Any, dataset: Any) -> Results:
     ``family_``, ``declared_``, ``equal_fits_``, ``fit_data_`` (its ``mask``, ``names``,
     ``folds()``, ``heldout_by``), ``conditions_``, ``envelope_``, ``admissibility_``,
     ``final_admissibility_``, ``selection_note_``, ``single_current_``, ``currents_``,
-    ``loop_``
+    ``noise_`` (optional: the :class:`~hystdisc.data.NoiseEstimate`), ``loop_``
     (the closing loop's ``LoopResult``, or None when it did not run: ``accepted``,
     ``tried``, ``skipped``, ``diagnosis``, ``unexplained``, ``unexplained_text``,
     ``residual``, ``fit``, ``effects``), the parameters ``input_hold`` and ``seed``, and
@@ -274,6 +275,10 @@ def build_results(disc: Any, dataset: Any) -> Results:
     }
     if currents is not None:  # one current: its dependence is not identifiable
         data["current_dependence"] = currents
+    noise = getattr(disc, "noise_", None)
+    if noise is not None:  # the measurement, modelled: how the noise was estimated
+        data["noise"] = noise.to_dict()
+        data["encoder"] = noise.encoder.to_dict() if noise.encoder is not None else None
     staged = getattr(disc, "staged_", None)
     if staged is not None:  # the seed's flowchart: per-level fits and current laws
         data["current_laws"] = staged.to_dict(disc.fit_data_.names)

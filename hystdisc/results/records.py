@@ -441,7 +441,8 @@ class ResidualSummary(Record):
     rms : float
         Its RMS over the fitted samples, data units.
     whiteness_p : float
-        Ljung-Box p-value pooled over runs (white when at least 0.01).
+        p-value of the whiteness test named by ``whiteness_test`` (white when at least
+        0.01).
     dominant_hz : float or None
         Dominant frequency of a structured (not white) residual.
     rms_over_noise : float or None
@@ -450,6 +451,11 @@ class ResidualSummary(Record):
         Quality factor of the dominant peak (closing loop only).
     noise_used : float or None
         The noise level the verdict used (closing loop only).
+    whiteness_test : str or None
+        ``ljung-box`` (against white noise, pooled over runs) or ``noise spectrum``
+        (against the spectrum of the noise's own period-to-period differences).
+    ljung_box_p : float or None
+        The Ljung-Box p-value, whichever test decided.
     extra : dict
         Keys this version does not know (kept on a round trip).
     """
@@ -460,6 +466,8 @@ class ResidualSummary(Record):
     rms_over_noise: float | None = None
     peak_q: float | None = None
     noise_used: float | None = None
+    whiteness_test: str | None = None
+    ljung_box_p: float | None = None
     extra: dict[str, Any] = field(default_factory=dict, repr=False)
 
 

@@ -169,6 +169,17 @@ class Results(Record):
         selected family's current-dependent parameters, held at 0 and marked not
         identifiable in the family tables) and a ``note``; None (absent) when the data hold
         two current levels or more.
+    noise : dict or None
+        How ``noise_std`` was estimated: ``std``, ``method`` (``period``: period-to-period
+        differences of a periodic excitation; ``differences``: high-order differences,
+        white noise; ``quantization``: the floor ``q / sqrt(12)`` of a quantized output),
+        ``signal``, ``differences``, ``period``, ``quantization_floor`` and each run's
+        estimates in ``runs`` (:meth:`hystdisc.data.NoiseEstimate.to_dict`).
+    encoder : dict or None
+        The lattice of the recorded angle, when it is quantized: ``step``,
+        ``counts_per_revolution`` (``2 pi / step`` when whole), ``floor``
+        (``step / sqrt(12)``), ``offset``, ``levels``, ``on_lattice``
+        (:class:`hystdisc.data.Quantization`); None when it is not.
     current_laws : dict or None
         The staged fit (``discover --staged``): per-level fits, each law parameter's
         per-level values with intervals, the candidate laws' held-out errors, the chosen
@@ -220,6 +231,8 @@ class Results(Record):
     system_model: dict[str, Any] | None = None
     current_dependence: dict[str, Any] | None = None
     current_laws: dict[str, Any] | None = None
+    noise: dict[str, Any] | None = None
+    encoder: dict[str, Any] | None = None
     extra: dict[str, Any] = field(default_factory=dict, repr=False)
 
     # ----------------------------------------------------------------- JSON
@@ -368,6 +381,10 @@ class Results(Record):
     def effects_table(self) -> list[str]:
         """Lines of the closing-the-loop table (empty when the loop did not run)."""
         return text.effects_table(self)
+
+    def measurement_lines(self) -> list[str]:
+        """How the noise was estimated and the encoder of a quantized angle, one line each."""
+        return text.measurement_lines(self)
 
     def report(self) -> str:
         """A readable fit report: discovered equations, family table, parameters, effects."""

@@ -148,18 +148,53 @@ def _residual_lines(res: Results) -> list[str]:
     if not r:
         return []
     wp, ratio = r.whiteness_p, r.rms_over_noise
+    spectrum = r.whiteness_test == "noise spectrum"
     verdict = "white" if wp is not None and wp >= 0.01 else "not white"
+    if spectrum:
+        verdict = "as the noise" if wp is not None and wp >= 0.01 else "above the noise"
     rms = r.rms if r.rms is not None else float("nan")
+    test = "whiteness against the noise's own spectrum" if spectrum else "Ljung-Box whiteness"
     out = [
         "",
         f"Residual: RMS {rms:.4g}"
         + (f" ({ratio:.2f}x the noise)" if ratio is not None else "")
-        + f", Ljung-Box whiteness p = {wp if wp is None else format(wp, '.3g')} "
+        + f", {test} p = {wp if wp is None else format(wp, '.3g')} "
         + f"({verdict})"
         + (f", dominant {r.dominant_hz:.3g} Hz" if r.dominant_hz is not None else ""),
     ]
     if res.unexplained:
         out.append(f"  Unexplained: {res.unexplained_text or 'structure remains'}")
+    return out
+
+
+_HOW = {
+    "period": "period-to-period differences of the periodic excitation",
+    "differences": "high-order differences (white noise assumed)",
+    "quantization": "the quantization floor q/sqrt(12)",
+}
+
+
+def measurement_lines(res: Results) -> list[str]:
+    """How the noise was estimated, and the encoder of a quantized angle (if any)."""
+    out = []
+    nz, enc = res.noise or {}, res.encoder
+    if nz.get("std") is not None:
+        how = _HOW.get(nz.get("method"), str(nz.get("method")))
+        diff = nz.get("differences")
+        other = (
+            f"; high-order differences give {diff:.3g}"
+            if nz.get("method") != "differences" and diff is not None
+            else ""
+        )
+        out.append(f"Measurement noise: {nz['std']:.3g} from {how}{other}")
+    if enc:
+        counts = enc.get("counts_per_revolution")
+        what = f"{counts} counts per revolution, " if counts else ""
+        used = " (the noise floor)" if nz.get("method") == "quantization" else ""
+        out.append(
+            f"Encoder: {what}step {enc['step']:.6g}, quantization floor q/sqrt(12) = "
+            f"{enc['floor']:.3g}{used}"
+        )
     return out
 
 
@@ -170,6 +205,7 @@ def report(res: Results) -> str:
     out = [
         f"hystdisc {res.version} — {res.input} ({res.experiment}, "
         f"{len(res.runs)} runs, noise {noise:.3g})",
+        *measurement_lines(res),
         "",
         f"Discovered structure: {disc.name if disc else ''}",
         disc.equations if disc else "",
