@@ -10,7 +10,7 @@ from hystdisc.data import Dataset
 from hystdisc.errors import HystdiscError
 from hystdisc.estimator import Discovery
 from hystdisc.fitting import FamilyParametrization
-from hystdisc.fitting.laws import LawParametrization, choose_law, fit_law, law_value
+from hystdisc.fitting.laws import choose_law, fit_law, law_value
 from hystdisc.fitting.staged import heldout_level, staged_fit
 from hystdisc.models import Model
 from hystdisc.report import render_report
@@ -54,9 +54,9 @@ def synthetic(alpha, seed=1):
 
 
 def staged(alpha):
-    """The discovery with the staged step (the estimator's hook)."""
+    """The discovery with the staged step (the estimator's hook) and the closing loop."""
     data = synthetic(alpha)
-    d = Discovery(model="bouc-wen-std", close_loop=False, staged=True).fit(data)
+    d = Discovery(model="bouc-wen-std", staged=True).fit(data)
     return d.fit_data_, d.family_fits_["bouc-wen-std"], d.staged_, d, data
 
 
@@ -89,10 +89,11 @@ def test_nonlinear_laws_need_four_levels():
     assert out["candidates"]["quadratic"] is None and out["candidates"]["saturating"] is None
 
 
-def test_law_parametrization_rejects_an_undeclared_law():
-    base = FamilyParametrization("dahl", "driven", {}, fixed={"k_wb": 0.0})
+def test_a_family_with_laws_rejects_an_undeclared_law():
     with pytest.raises(HystdiscError, match="dahl has no current law 'alpha'; fix: use one of k_w"):
-        LawParametrization(base, {"alpha": "linear"}, {})
+        FamilyParametrization("dahl", "driven", {}, laws={"alpha": "linear"})
+    with pytest.raises(HystdiscError, match="unknown current law 'cubic'; fix: use one of linear"):
+        FamilyParametrization("dahl", "driven", {}, laws={"k_w": "cubic"})
 
 
 def test_linear_truth_keeps_the_linear_laws(linear_case):
@@ -127,11 +128,73 @@ def test_saturating_truth_is_found_and_predicts_a_left_out_level(saturating_case
             [0.5, 3.0, 0.3], rel=0.02
         )
     # a current level no fit saw (0.5 A): the laws fitted to the other four levels
-    lin = heldout_level(fd, fit, st.laws, {"alpha": "linear", "c": "linear"}, 0.5)
-    law = heldout_level(fd, fit, st.laws, st.chosen, 0.5)
+    lin = heldout_level(fd, st.linear, st.laws, {"alpha": "linear", "c": "linear"}, 0.5)
+    law = heldout_level(fd, st.linear, st.laws, st.chosen, 0.5)
     assert law < 1.2 * NOISE < 5 * NOISE < lin, (
         f"held-out RMS at 0.5 A: chosen laws {law:.4g}, linear {lin:.4g}"
     )
+
+
+def test_the_chosen_law_is_the_final_model(saturating_case):
+    fd, fit, st, d, data = saturating_case
+    assert st.chosen == {"alpha": "saturating", "c": "linear"}
+    # the selected family's fit is the joint fit with the chosen law; the loop ran on it
+    assert fit is st.joint and fit.par.laws == {"alpha": "saturating"}
+    final = d.final_fit_
+    assert final.par.laws == {"alpha": "saturating"} and d.effects_ == []
+    p = final.params
+    assert [p["alpha_1"], p["alpha_2"], p["alpha_i0"], p["c_1"], p["c_2"]] == pytest.approx(
+        [0.5, 3.0, 0.3, 0.5, 0.6], rel=0.02
+    )
+    # leave one condition out, as the loop reports it: at the noise (linear laws: not)
+    assert final.heldout_rms < 1.1 * NOISE < 2 * NOISE < st.linear.heldout_rms
+    skipped = {s["name"]: s["reason"] for s in d.loop_.skipped}
+    assert (
+        "the staged fit chose the current laws (alpha_1 saturating" in skipped["current_saturation"]
+    )
+    # results.json: the selected family, the final model and its term form carry the law
+    res = Results.from_json(d.results_.to_json())
+    assert res.selected.parameters["alpha_i0"].value == pytest.approx(0.3, rel=0.02)
+    assert res.final.parameters["alpha_i0"].value == pytest.approx(0.3, rel=0.02)
+    assert res.model.get("saturation")["z"] == pytest.approx(0.3, rel=0.02)
+    tm = res.term_model()
+    assert tm.saturation == pytest.approx(final.term_model.saturation, rel=1e-9)
+    line = tm.equations().splitlines()[0]
+    assert f"tanh(i/{tm.saturation['z']:.4g})*z" in line and "i*z" not in line
+
+
+def test_a_linear_truth_keeps_a_linear_final_model(linear_case):
+    fd, fit, st, d, data = linear_case
+    assert d.final_fit_.par.laws == {} and d.effects_ == []
+    assert not any(k.endswith(("_i0", "_i2")) for k in d.final_fit_.params)
+    assert d.final_fit_.heldout_rms < 1.1 * NOISE
+    res = Results.from_json(d.results_.to_json())
+    assert "saturation" not in res.model and "alpha_i0" not in res.final.parameters
+
+
+def test_results_json_and_predict_reproduce_the_final_model(saturating_case, tmp_path, capsys):
+    from hystdisc.cli import main
+    from hystdisc.data import write_csv
+
+    fd, fit, st, d, data = saturating_case
+    path = d.results_.save(tmp_path / "results.json")
+    csv = write_csv(data, tmp_path / "data.csv")
+    out = tmp_path / "pred.csv"
+    assert main(["predict", str(path), str(csv), "-o", str(out), "--quiet"]) == 0
+    lines = [line.split(",") for line in out.read_text().splitlines()[1:]]
+    ours = d.predict(data)
+    scale = max(float(np.max(np.abs(p))) for p in ours)
+    for r, p in zip(data.runs, ours, strict=True):
+        got = np.array([float(w[-1]) for w in lines if w[0] == r.name])
+        assert np.max(np.abs(got - p)) < 1e-6 * scale, r.name
+    # the prediction is the saturating model's: at the noise on every run, where the
+    # linear laws' model is not
+    e = np.concatenate([p - r.torque for p, r in zip(ours, data.runs, strict=True)])
+    from hystdisc.fitting.predict import predict_dataset
+
+    lin = predict_dataset(st.linear.model, data, "driven")
+    e_lin = np.concatenate([p - r.torque for p, r in zip(lin, data.runs, strict=True)])
+    assert np.sqrt(np.mean(e * e)) < 1.1 * NOISE < 2 * NOISE < np.sqrt(np.mean(e_lin * e_lin))
 
 
 def test_results_report_and_plot_carry_the_laws(saturating_case):

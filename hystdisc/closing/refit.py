@@ -172,6 +172,8 @@ def stage1_start(
             )
     for k, v in fit.par.fixed.items():
         p[k] = v
+    for q in fam.law_params(getattr(fit.par, "laws", {})):  # stage 1 knows linear laws only
+        p.setdefault(q.name, fit.params[q.name])
     if not all(np.isfinite(v) for v in p.values()):
         return None
     return p
