@@ -88,9 +88,10 @@ TORQUE_TERMS: dict[str, Callable[..., np.ndarray]] = {
     "theta^3": lambda th, w, z, i: th**3,
     "1": lambda th, w, z, i: np.ones_like(np.asarray(th, dtype=float)),
     "i^2*theta_dot": lambda th, w, z, i: i * i * w,
-    "i^2*sign(theta_dot)": lambda th, w, z, i: i * i * smooth_sign(w),
     # at the exponent SHEAR_M0; a term model evaluates it at its own m (TermModel.term)
     SHEAR_TERM: lambda th, w, z, i, m=SHEAR_M0: smooth_power(w, m),
+    # a quadratic current law of the Coulomb torque (Family.apply_laws)
+    "i^2*sign(theta_dot)": lambda th, w, z, i: i * i * smooth_sign(w),
 }
 TORQUE_TERM_NAMES: tuple[str, ...] = tuple(TORQUE_TERMS)
 
