@@ -204,7 +204,8 @@ class Discovery(BaseEstimator):
     staged : bool
         After the selection, the seed's flowchart (:mod:`hystdisc.fitting.staged`): the
         selected family fitted at each current level, each current law chosen by leaving
-        one level out, the joint fit with the chosen laws (``staged_``; needs 3 levels).
+        one level out, the joint fit with the chosen laws (``staged_``; needs 3 levels);
+        a chosen law that is not linear is carried into the final model.
     n_starts : int
         Starts of each term family's output-error fit (:mod:`hystdisc.fitting.multistart`):
         stage 1's, up to :data:`GRID_BASINS` other basins of its shape's stage-1 grid, then
@@ -274,8 +275,12 @@ class Discovery(BaseEstimator):
         The final model's admissibility (a loud warning when it fails).
     staged_ : StagedFit or None
         The staged fit (``staged=True`` and 3 current levels or more), else None; its
-        ``current_laws`` table is in ``results.json``. The final model keeps the linear
-        laws (the closing loop and ``predict`` work on it).
+        ``current_laws`` table is in ``results.json``. When it chose a law that is not
+        linear (and its joint fit predicts the held-out conditions better than the linear
+        laws), that joint fit replaces the selected family's fit in ``family_fits_``: the
+        closing loop, the final model, ``results.json`` and ``predict`` carry the laws (a
+        saturating law's ``<law>_i0``, a quadratic law's ``<law>_i2`` among the
+        parameters).
     results_ : Results
         The ``results.json`` contract.
 
@@ -508,10 +513,9 @@ class Discovery(BaseEstimator):
 
     def _decided_by_staged(self) -> dict[str, str]:
         """Effects the staged fit decided: the current law of the hysteretic torque is
-        chosen there (``current_saturation`` is one of its outcomes, not a guess). When it
-        chose a law that is not linear, the loop keeps ``current_saturation`` as that law's
-        term form (a quadratic law is exactly ``i^2 z``)."""
-        if self.staged_ is None or self.staged_.changed:
+        chosen there (``current_saturation`` is one of its outcomes, not a guess), and the
+        chosen laws are the selected family's model."""
+        if self.staged_ is None:
             return {}
         laws = self.staged_.laws
         chosen = ", ".join(f"{d['parameter']} {d['law']}" for d in laws.values())
@@ -701,6 +705,12 @@ class Discovery(BaseEstimator):
         n_levels = distinct_currents(fd.currents).size
         if self.staged and n_levels >= MIN_STAGED_LEVELS:
             self.staged_ = staged_fit(fd, selected, self.max_nfev, self.heldout, say)
+            if self.staged_.changed:
+                # the chosen laws predict the held-out conditions better: they are the
+                # selected family's model from here on (loop, results.json, predict)
+                selected = self.staged_.joint
+                self.family_fits_[self.family_] = selected
+                self.admissibility_[self.family_] = check_admissible(selected.model, self.envelope_)
         elif self.staged:
             warnings.warn(
                 f"{dataset.source}: {n_levels} current level(s); the staged fit needs "

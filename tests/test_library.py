@@ -60,6 +60,7 @@ def test_transform_values_by_hand():
             -2.0 * (4.0 + 1e-6) ** -0.25,
             3e-4 * (9e-8 + 1e-6) ** -0.25,
         ],
+        "i^2*sign(theta_dot)": [2.25 * sgn[0], 0.0],
     }
     assert set(F) == set(expected)
     for name, values in expected.items():

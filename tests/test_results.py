@@ -51,12 +51,12 @@ def test_schema1_file_loads_and_keeps_its_bytes(path):
     old = json.loads(text)
     assert "schema_version" not in old
     res = Results.load(path)
-    assert res.schema_version == SCHEMA_VERSION == 4
+    assert res.schema_version == SCHEMA_VERSION == 5
     summary = res.summary()
     assert list(summary) == ["schema_version", *old]
     assert {k: v for k, v in summary.items() if k != "schema_version"} == old
     # written back: today's bytes with one more line
-    assert res.to_json() == text.replace("{\n", '{\n "schema_version": 4,\n', 1)
+    assert res.to_json() == text.replace("{\n", '{\n "schema_version": 5,\n', 1)
     assert Results.from_json(text).summary() == summary
     # the models are usable
     assert isinstance(res.term_model(), TermModel)
@@ -222,7 +222,7 @@ def test_real_fit_has_todays_keys_plus_schema_version(small_fit):
     summary = json.loads(disc.results_.to_json())
     _, old = _schema1("effects")  # written by today's code with the loop
     assert list(summary) == ["schema_version", *_after(list(old), "seed", NEW_TOP)]
-    assert summary["schema_version"] == 4
+    assert summary["schema_version"] == 5
     for name, fam in summary["families"].items():
         assert list(fam) == _after(list(old["families"]["dahl"]), "n_params", NEW_FAMILY), name
         assert fam["admissible"] is True and fam["violations"] == []

@@ -56,6 +56,7 @@ assert TORQUE_TERM_NAMES == (
     "1",
     "i^2*theta_dot",
     "sign(theta_dot)*|theta_dot|^m",
+    "i^2*sign(theta_dot)",
 )
 assert HYSTERESIS_TERM_NAMES == (
     "theta_dot",
@@ -85,6 +86,7 @@ def _ref_torque(a, th, w, z, i, eps):
         + a[11]
         + a[12] * i * i * w
         + a[13] * w / (w * w + eps * eps) ** 0.25  # at m = 0.5 (tests/test_thinning.py: any m)
+        + a[14] * i * i * s
     )
 
 

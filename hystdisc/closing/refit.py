@@ -190,6 +190,9 @@ def _with_effect_values(p: dict, coefs: dict, fit: OEFit, effects: Sequence[str]
             )
     for k, v in fit.par.fixed.items():
         p[k] = v
+    laws = getattr(fit.par, "laws", {})
+    for q in fit.par.family.law_params(laws):  # stage 1 knows linear laws only
+        p.setdefault(q.name, fit.params[q.name])
     if not all(np.isfinite(v) for v in p.values()):
         return None
     return p

@@ -20,8 +20,10 @@ one (``i0 -> infinity``); ``a + B tanh(i / i0)`` is the same law with ``B = b i0
 
 :func:`fit_law` fits a law to per-level values weighted by their intervals;
 :func:`loo_error` predicts each level from the others (the held-out error that chooses
-the law, :func:`choose_law`); :class:`LawParametrization` is the joint output-error fit
-of every run with the chosen laws.
+the law, :func:`choose_law`). The joint output-error fit of every run with the chosen
+laws is the family's own parametrization with those laws
+(:class:`~hystdisc.fitting.FamilyParametrization` ``laws=``): the laws are part of the
+family's model (:meth:`hystdisc.models.Family.law_value`).
 
 Examples
 --------
@@ -44,7 +46,7 @@ from scipy.optimize import minimize_scalar
 from scipy.stats import chi2
 
 from hystdisc.errors import HystdiscError
-from hystdisc.fitting.parametrization import Parametrization
+from hystdisc.models import LAW_SUFFIX
 
 #: The candidate laws, simplest first, and their coefficients.
 LAWS: dict[str, tuple[str, ...]] = {
@@ -235,138 +237,6 @@ def choose_law(i: Sequence[float], v: Sequence[float], se: Sequence[float]) -> d
 
 def law_names(key: str, passive: str, slope: str, law: str) -> list[str]:
     """Free-parameter names of ``law`` for the family law ``key`` (``a``, ``b`` keep the
-    family's names; the extra coefficient is ``<key>_i2`` or ``<key>_i0``)."""
-    extra = {"linear": [], "quadratic": [f"{key}_i2"], "saturating": [f"{key}_i0"]}[law]
-    return [passive, slope, *extra]
-
-
-class LawParametrization(Parametrization):
-    """A family's joint fit over every run with a current law per parameter.
-
-    The free parameters are the shared ones (every parameter of ``base`` that is not the
-    passive parameter of a law) and each law's coefficients (:func:`law_names`). A run's
-    model is the family at its current: the law parameters evaluated by their laws, the
-    per-ampere slopes at 0 (:meth:`run_model`, the one place that makes it; ``base``
-    decides what a model is, so a state-space family's :class:`SystemParametrization`
-    plugs in as well as a :class:`FamilyParametrization`).
-
-    Parameters
-    ----------
-    base : Parametrization
-        The family at one current: its current-dependent parameters fixed at 0
-        (``fixed``), so that its passive parameters are the values at the current.
-    laws : dict
-        Law name (a key of the family's ``current_laws``) -> law (a key of :data:`LAWS`).
-    start : dict
-        Start values: shared parameters by name, law coefficients by :func:`law_names`.
-
-    Examples
-    --------
-    >>> from hystdisc.fitting import FamilyParametrization
-    >>> base = FamilyParametrization("bouc-wen-std", "driven", {},
-    ...                              fixed={"alpha_2": 0.0, "c_2": 0.0})
-    >>> par = LawParametrization(base, {"alpha": "saturating", "c": "linear"},
-    ...                          {"alpha_1": 1.0, "alpha_2": 2.0, "alpha_i0": 0.5})
-    >>> par.names
-    ['beta', 'gamma', 'n', 'k_s', 'alpha_1', 'alpha_2', 'alpha_i0', 'c_1', 'c_2']
-    >>> round(par.values_at(par.params(par.x0), 0.5)["alpha_1"], 4)
-    1.7616
-    """
-
-    def __init__(
-        self, base: Parametrization, laws: Mapping[str, str], start: Mapping[str, float]
-    ) -> None:
-        self.base = base
-        family = base.family if hasattr(base, "family") else base.system
-        declared = dict(family.current_laws)
-        unknown = [k for k in laws if k not in declared]
-        if unknown:
-            raise HystdiscError(
-                f"{family.name} has no current law '{unknown[0]}'; fix: use one of "
-                f"{', '.join(declared) or '(none)'}"
-            )
-        self.family = family
-        self.laws = {k: laws[k] for k in declared if k in laws}
-        passives = {declared[k][0] for k in self.laws}
-        spec = dict(zip(base.names, zip(base.lower, base.upper, strict=True), strict=True))
-        bounds = {p.name: (p.lower, p.upper) for p in family.params}
-        names, lo, hi, x0 = [], [], [], []
-        b0 = base.params(base.x0)
-        for n in base.names:
-            if n not in passives:
-                names.append(n)
-                lo.append(spec[n][0])
-                hi.append(spec[n][1])
-                x0.append(start.get(n, b0[n]))
-        self.coef_names: dict[str, list[str]] = {}
-        for key, law in self.laws.items():
-            passive, slope = declared[key]
-            cn = law_names(key, passive, slope, law)
-            self.coef_names[key] = cn
-            extra = {
-                "linear": [],
-                "quadratic": [(-np.inf, np.inf)],
-                "saturating": [(1e-6, np.inf)],
-            }[law]
-            for name, (lo_k, hi_k) in zip(
-                cn, [spec[passive], bounds.get(slope, (-np.inf, np.inf)), *extra], strict=True
-            ):
-                names.append(name)
-                lo.append(lo_k)
-                hi.append(hi_k)
-                default = {"quadratic": 0.0, "saturating": 1.0}.get(law, 0.0)
-                x0.append(start.get(name, b0.get(name, default)))
-        self.names = names
-        self.lower = np.array(lo, dtype=float)
-        self.upper = np.array(hi, dtype=float)
-        x0 = np.clip(np.asarray(x0, dtype=float), self.lower, self.upper)
-        self.x0 = x0
-        self.normalization = getattr(base, "normalization", "")
-        self.declared = declared
-
-    def params(self, x: np.ndarray) -> dict[str, float]:
-        return dict(zip(self.names, map(float, x), strict=True))
-
-    def coefs(self, p: Mapping[str, float], key: str) -> dict[str, float]:
-        """The coefficients ``{a, b[, q | i0]}`` of law ``key`` in the parameters ``p``."""
-        cn = self.coef_names[key]
-        c = {"a": p[cn[0]], "b": p[cn[1]]}
-        law = self.laws[key]
-        if law != "linear":
-            c[LAWS[law][2]] = p[cn[2]]
-        return c
-
-    def values_at(self, p: Mapping[str, float], current: float) -> dict[str, float]:
-        """The base's parameters at ``current``: shared values, law values for the
-        passive parameters (the slopes stay at the base's fixed 0)."""
-        out = {n: p[n] for n in self.base.names if n in p}
-        for key, law in self.laws.items():
-            out[self.declared[key][0]] = float(law_value(law, self.coefs(p, key), current))
-        return out
-
-    def run_model(self, p: Mapping[str, float], current: float):
-        """The family's model at ``current`` (what ``base.simulate`` takes)."""
-        q = self.values_at(p, current)
-        return self.base.model(np.array([q[n] for n in self.base.names], dtype=float))
-
-    def model(self, x: np.ndarray):
-        return self.params(x)
-
-    def terms(self, x: np.ndarray):
-        raise HystdiscError(
-            "a fit with current laws has one model per current, not one term model; fix: "
-            "use terms_at(x, current)"
-        )
-
-    def terms_at(self, x: np.ndarray, current: float):
-        """The model at ``current`` for the free vector ``x``."""
-        return self.run_model(self.params(x), current)
-
-    def has_state(self) -> bool:
-        return self.base.has_state()
-
-    def simulate(self, data, models, runs, nuis, status_out=None, work_out=None):
-        resolved = [
-            self.run_model(p, float(data.currents[r])) for p, r in zip(models, runs, strict=True)
-        ]
-        return self.base.simulate(data, resolved, runs, nuis, status_out, work_out)
+    family's names; the extra coefficient is ``<key>_i2`` or ``<key>_i0``, the parameter
+    a family's model carries: :meth:`hystdisc.models.Family.law_params`)."""
+    return [passive, slope, *([key + LAW_SUFFIX[law]] if law in LAW_SUFFIX else [])]

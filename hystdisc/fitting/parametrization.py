@@ -80,10 +80,24 @@ def _clip_start(x0, lo, hi):
 
 
 class FamilyParametrization(Parametrization):
-    """A family's own parameters (+ rig ``k_s``/``J`` + effect parameters).
+    """A family's own parameters (+ its current laws' coefficients + rig ``k_s``/``J`` +
+    effect parameters).
 
     Bouc-Wen families are normalized to ``z_sat = 1`` (``delta = beta + gamma``, so
-    ``delta`` is derived); the other families carry their own scale.
+    ``delta`` is derived); the other families carry their own scale. ``laws`` (law name
+    -> ``linear``, ``quadratic`` or ``saturating``) gives a law of the family's
+    ``current_laws`` that is not linear its coefficient as a free parameter (``alpha_i0``,
+    :meth:`~hystdisc.models.Family.law_params`), carried into the term model
+    (:meth:`~hystdisc.models.Family.apply_laws`) and into every :meth:`like`.
+
+    Examples
+    --------
+    >>> par = FamilyParametrization("bouc-wen-std", "driven", {"alpha_i0": 0.5},
+    ...                             laws={"alpha": "saturating"})
+    >>> par.names
+    ['alpha_1', 'alpha_2', 'c_1', 'c_2', 'beta', 'gamma', 'n', 'alpha_i0', 'k_s']
+    >>> par.terms(par.x0).saturation
+    {'z': 0.5}
     """
 
     def __init__(
@@ -94,8 +108,10 @@ class FamilyParametrization(Parametrization):
         effects: tuple[str, ...] = (),
         fixed: dict[str, float] | None = None,
         normalization: str = "z_sat",
+        laws: dict[str, str] | None = None,
     ) -> None:
         self.family = get_family(family) if isinstance(family, str) else family
+        self.laws = self.family.check_laws(laws)
         self.fixed = dict(fixed or {})
         bw = self.family.name.startswith("bouc-wen")
         if normalization not in ("z_sat", "alpha_1"):
@@ -115,7 +131,9 @@ class FamilyParametrization(Parametrization):
             else self.family.normalization
         )
         specs: list[Param] = [
-            p for p in self.family.params if p.name not in self.derived and p.name not in self.fixed
+            p
+            for p in (*self.family.params, *self.family.law_params(self.laws))
+            if p.name not in self.derived and p.name not in self.fixed
         ]
         if "k_s" not in self.fixed:  # held, e.g., by the per-level fits of the laws
             specs.append(RIG_PARAMS[0])  # k_s
@@ -134,7 +152,7 @@ class FamilyParametrization(Parametrization):
         """The same family, normalization and fixed parameters with other ``effects`` (a
         :class:`StructuralParametrization` when one of them is structural)."""
         return family_parametrization(
-            self.family, self.experiment, start, effects, self.fixed, self.norm
+            self.family, self.experiment, start, effects, self.fixed, self.norm, self.laws
         )
 
     def params(self, x):
@@ -152,7 +170,7 @@ class FamilyParametrization(Parametrization):
 
     def terms(self, x):
         p = self.params(x)
-        tm = self.family.to_terms(p)
+        tm = self.family.apply_laws(self.family.to_terms(p), p)
         tm.torque["theta"] = tm.torque.get("theta", 0.0) + p["k_s"]
         tm.J = p.get("J", 1.0)
         for e in self.effects:
@@ -287,6 +305,8 @@ class FamilySystemParametrization(SystemParametrization):
     (['alpha_a', 'alpha_b', 'c0_a'], True)
     >>> sorted(k for k in par.params(par.x0) if k.startswith("c_post"))
     ['c_post_0', 'c_post_1']
+    >>> FamilySystemParametrization("spencer", "driven", {}, laws={"alpha": "saturating"}).names[-1]
+    'alpha_i0'
     """
 
     def __init__(
@@ -296,18 +316,22 @@ class FamilySystemParametrization(SystemParametrization):
         start: dict[str, float],
         effects: tuple[str, ...] = (),
         fixed: dict[str, float] | None = None,
+        laws: dict[str, str] | None = None,
     ) -> None:
         self.family = get_family(family) if isinstance(family, str) else family
         self.experiment = experiment
         self.effects = tuple(effects)
-        super().__init__(self.family.system(experiment, self.effects), start, fixed)
+        self.laws = self.family.check_laws(laws)
+        super().__init__(self.family.system(experiment, self.effects, self.laws), start, fixed)
         self.normalization = self.family.normalization
 
     def like(
         self, start: dict[str, float], effects: tuple[str, ...]
     ) -> FamilySystemParametrization:
-        """The same family and fixed parameters with other ``effects``."""
-        return FamilySystemParametrization(self.family, self.experiment, start, effects, self.fixed)
+        """The same family, current laws and fixed parameters with other ``effects``."""
+        return FamilySystemParametrization(
+            self.family, self.experiment, start, effects, self.fixed, self.laws
+        )
 
     def values(self, x: np.ndarray) -> dict[str, float]:
         """The model's own parameter values (free and fixed) for the free vector ``x``."""
@@ -375,6 +399,7 @@ def family_parametrization(
     effects: tuple[str, ...] = (),
     fixed: dict[str, float] | None = None,
     normalization: str = "z_sat",
+    laws: dict[str, str] | None = None,
 ) -> FamilyParametrization:
     """A :class:`FamilyParametrization`, or a :class:`StructuralParametrization` when one
     of ``effects`` is structural (same arguments)."""
@@ -383,4 +408,4 @@ def family_parametrization(
         if any(EFFECTS[e].structural for e in effects)
         else FamilyParametrization
     )
-    return cls(family, experiment, start, tuple(effects), fixed, normalization)
+    return cls(family, experiment, start, tuple(effects), fixed, normalization, laws)

@@ -15,11 +15,14 @@
    levels, weighted by their intervals, predicts the left-out level's value. This is
    cheap (no simulation) and it is a held-out judgment of exactly what a law claims: the
    value at a current the law did not see.
-3. The joint fit over every run uses the chosen laws
-   (:class:`~hystdisc.fitting.laws.LawParametrization`), started from the family's joint
-   (linear) fit for the shared parameters and from the laws fitted to the levels; it is
-   judged by the held-out output error as every fit is. When every chosen law is linear
-   the joint fit is the family's own fit.
+3. The joint fit over every run uses the chosen laws: the family's own parametrization
+   with them (``FamilyParametrization(..., laws=...)``; a saturating law's ``i0`` or a
+   quadratic law's coefficient is a free parameter of the family's model), started from
+   the family's joint (linear) fit for the shared parameters and from the laws fitted to
+   the levels; it is judged by the held-out output error as every fit is. When every
+   chosen law is linear the joint fit is the family's own fit. The joint fit is a family
+   fit like any other: :class:`~hystdisc.Discovery` makes it the selected family's fit,
+   so the closing loop, ``results.json`` and ``hystdisc predict`` carry the laws.
 
 :func:`staged_fit` runs the three steps and returns a :class:`StagedFit`.
 """
@@ -37,7 +40,6 @@ from hystdisc.fitting.data import FitData
 from hystdisc.fitting.laws import (
     LAWS,
     MIN_LEVELS,
-    LawParametrization,
     choose_law,
     fit_law,
     floored_se,
@@ -227,11 +229,15 @@ def level_parametrization(
     return _family_par(par, start, fixed)
 
 
-def _family_par(par, start: Mapping[str, float], fixed: dict):
-    """``par``'s family (term form or state-space) started at ``start`` with ``fixed``."""
+def _family_par(
+    par, start: Mapping[str, float], fixed: dict, laws: Mapping[str, str] | None = None
+):
+    """``par``'s family (term form or state-space) started at ``start`` with ``fixed`` and
+    the current ``laws`` (law name -> law)."""
+    laws = dict(laws or {})
     if isinstance(par, FamilySystemParametrization):
-        return FamilySystemParametrization(par.family, par.experiment, dict(start), (), fixed)
-    return FamilyParametrization(par.family, par.experiment, dict(start), (), fixed, par.norm)
+        return FamilySystemParametrization(par.family, par.experiment, dict(start), (), fixed, laws)
+    return FamilyParametrization(par.family, par.experiment, dict(start), (), fixed, par.norm, laws)
 
 
 def level_fits(
@@ -301,16 +307,17 @@ def joint_fit(
     max_nfev: int = 40,
     heldout: bool = True,
 ) -> OEFit:
-    """The joint fit of every run of ``fd`` with the laws ``chosen`` (law name -> law)."""
-    base = level_parametrization(par, shared)
-    lp = LawParametrization(base, chosen, {})
+    """The joint fit of every run of ``fd`` with the laws ``chosen`` (law name -> law): the
+    family of ``par`` with those laws (its parametrization's ``laws``), the shared
+    parameters started at ``shared``, each law's coefficients at the law fitted to the
+    levels (``laws``)."""
     start = dict(shared)
-    for key, law in lp.laws.items():
+    for key, law in chosen.items():
         d = laws[key]
         coefs = fit_law(law, d["currents"], d["values"], floored_se(d["values"], d["stderr"]))
         for name, c in zip(law_names(key, d["parameter"], d["slope"], law), LAWS[law], strict=True):
             start[name] = coefs[c]
-    lp = LawParametrization(base, chosen, start)
+    lp = _family_par(par, start, dict(par.fixed), chosen)
     return OutputErrorFitter(fd, lp, max_nfev=max_nfev).fit(heldout=heldout)
 
 

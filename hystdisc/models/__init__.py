@@ -8,12 +8,13 @@ from __future__ import annotations
 
 from hystdisc import registry
 from hystdisc.models.effects import Effect
-from hystdisc.models.families.base import Family
+from hystdisc.models.families.base import CURRENT_LAWS, LAW_SUFFIX, Family
 from hystdisc.models.model import Model
 from hystdisc.models.params import BIG, RIG_PARAMS, Param, check_params
 from hystdisc.models.terms import (
     HYSTERESIS_TERM_NAMES,
     HYSTERESIS_TERMS,
+    LAW_GROUPS,
     SHEAR_M0,
     SHEAR_TERM,
     SIGN_EPS,
@@ -21,6 +22,7 @@ from hystdisc.models.terms import (
     TORQUE_TERMS,
     Z_TORQUE_TERMS,
     TermModel,
+    effective_current,
     format_equation,
     smooth_power,
     smooth_sign,
@@ -36,10 +38,13 @@ EFFECTS: dict[str, Effect] = {n: registry.get_effect(n) for n in registry.effect
 
 __all__ = [
     "BIG",
+    "CURRENT_LAWS",
     "EFFECTS",
     "FAMILIES",
     "HYSTERESIS_TERMS",
     "HYSTERESIS_TERM_NAMES",
+    "LAW_GROUPS",
+    "LAW_SUFFIX",
     "RIG_PARAMS",
     "SHEAR_M0",
     "SHEAR_TERM",
@@ -53,6 +58,7 @@ __all__ = [
     "Param",
     "TermModel",
     "check_params",
+    "effective_current",
     "format_equation",
     "get_effect",
     "get_family",

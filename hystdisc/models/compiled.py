@@ -37,15 +37,34 @@ N_BASE = 10
 
 
 def base_coefficients(tm: TermModel, current: float) -> np.ndarray:
-    """Fold the current into the torque coefficients of a run (see ``N_BASE`` layout)."""
+    """Fold the current into the torque coefficients of a run (see ``N_BASE`` layout).
+
+    A group's ``i*`` term sees the current of its law (``i``, or ``i0 tanh(i / i0)`` for a
+    saturating law, :meth:`~hystdisc.models.TermModel.current`); its ``i^2`` term is a
+    quadratic law's.
+
+    Examples
+    --------
+    >>> tm = TermModel({"z": 0.5, "i*z": 3.0}, saturation={"z": 0.3})
+    >>> round(float(base_coefficients(tm, 2.0)[2]), 4)  # 0.5 + 3 * 0.3 tanh(2 / 0.3)
+    1.4
+    """
     g = tm.torque.get
     i = float(current)
+
+    def law(group: str) -> float:
+        return (
+            g(group, 0.0)
+            + tm.current(group, i) * g(f"i*{group}", 0.0)
+            + i * i * g(f"i^2*{group}", 0.0)
+        )
+
     c = np.zeros(N_BASE)
     c[0] = g("theta", 0.0)
-    c[1] = g("theta_dot", 0.0) + i * g("i*theta_dot", 0.0) + i * i * g("i^2*theta_dot", 0.0)
-    c[2] = g("z", 0.0) + i * g("i*z", 0.0) + i * i * g("i^2*z", 0.0)
+    c[1] = law("theta_dot")
+    c[2] = law("z")
     c[3] = g("|theta_dot|*z", 0.0)
-    c[4] = g("sign(theta_dot)", 0.0) + i * g("i*sign(theta_dot)", 0.0)
+    c[4] = law("sign(theta_dot)")
     c[5] = g("theta_dot*|theta_dot|", 0.0)
     c[6] = g("theta^3", 0.0)
     c[7] = g("1", 0.0)

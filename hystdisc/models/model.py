@@ -21,11 +21,17 @@ class Model:
     effects : dict, optional
         Effect name -> dict of its parameters (unset ones take defaults).
 
+    A current law's coefficient among ``params`` (``alpha_i0``: the family's ``alpha``
+    saturates, ``alpha_i2``: it is quadratic; see
+    :meth:`~hystdisc.models.Family.law_params`) makes that law the model's.
+
     Examples
     --------
     >>> m = Model("bouc-wen", {"c_2": 0.0}, effects={"coulomb": {"f_c": 0.2}})
     >>> m.to_terms().torque["sign(theta_dot)"]
     0.2
+    >>> Model("dahl", {"k_wb": 3.0, "k_w_i0": 0.3}).to_terms().saturation
+    {'z': 0.3}
     >>> Model("dahl", {"rho": -1})
     Traceback (most recent call last):
     ...
@@ -40,8 +46,10 @@ class Model:
     ) -> None:
         self.family = get_family(family)
         params = dict(params or {})
-        specs = self.family.params + RIG_PARAMS
+        laws = self.family.laws_of(params)
+        specs = self.family.params + self.family.law_params(laws) + RIG_PARAMS
         self.params = check_params(self.family.name, specs, params)
+        self.laws = laws
         self.effects: dict[str, dict[str, float]] = {}
         for name, ep in (effects or {}).items():
             eff = get_effect(name)
@@ -54,7 +62,7 @@ class Model:
     def system(self, experiment: str):
         """The model as a state-space system with its values, for a system family
         (:class:`~hystdisc.models.families.base.SystemFamily`)."""
-        sys = self.family.system(experiment, tuple(self.effects))
+        sys = self.family.system(experiment, tuple(self.effects), self.laws)
         names = {p.name for p in sys.params}
         values = {k: v for k, v in self.params.items() if k in names}
         for ep in self.effects.values():
@@ -63,7 +71,7 @@ class Model:
 
     def to_terms(self) -> TermModel:
         """The generic term form of this model (spring, damper and effects)."""
-        tm = self.family.to_terms(self.params)
+        tm = self.family.apply_laws(self.family.to_terms(self.params), self.params)
         tm.torque["theta"] = tm.torque.get("theta", 0.0) + self.params["k_s"]
         tm.J = self.params["J"]
         for name, ep in self.effects.items():

@@ -230,10 +230,21 @@ class FamilySystem(StateSpaceModel):
         ``release``, ``driven`` or ``forced``.
     effects : tuple of str
         Catalogued effects whose torque terms are added to the damper's.
+    laws : dict, optional
+        Current laws that are not linear (law name -> ``quadratic`` or ``saturating``):
+        their coefficients (``alpha_i0``, ...) are parameters after the family's, and the
+        family's :meth:`block` folds them in (``Family.law_value``).
     """
 
-    def __init__(self, family, experiment: str = "driven", effects: tuple[str, ...] = ()) -> None:
+    def __init__(
+        self,
+        family,
+        experiment: str = "driven",
+        effects: tuple[str, ...] = (),
+        laws: Mapping[str, str] | None = None,
+    ) -> None:
         self.family = family
+        self.laws = family.check_laws(laws)
         self.experiment = get_experiment(experiment)
         self.effects = tuple(get_effect(e).name for e in effects)
         self._effects = [get_effect(e) for e in self.effects]
@@ -253,7 +264,7 @@ class FamilySystem(StateSpaceModel):
             self.rate, self.observe = family.mech_rate, family.mech_output
             rig = (RIG_PARAMS[0],) + ((RIG_PARAMS[1],) if exp.inertia_identifiable else ())
         eff_params = tuple(p for e in self._effects for p in e.params)
-        self.params = (*fam_params, *rig, *eff_params)
+        self.params = (*fam_params, *family.law_params(self.laws), *rig, *eff_params)
 
     def run_parameters(self, values: Mapping[str, float], current: float) -> np.ndarray:
         v = self.check(values)
@@ -267,4 +278,5 @@ class FamilySystem(StateSpaceModel):
 
     def equations(self) -> str:
         extra = "".join(f"\n+ {e.name}: {e.doc}" for e in self._effects)
-        return self.family.equations() + extra
+        laws = self.family.law_equations(self.laws)
+        return self.family.equations() + (f"\n{laws}" if laws else "") + extra

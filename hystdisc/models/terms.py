@@ -28,6 +28,7 @@ dz/dt = rho*(theta_dot - |theta_dot|*z)
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
@@ -89,6 +90,8 @@ TORQUE_TERMS: dict[str, Callable[..., np.ndarray]] = {
     "i^2*theta_dot": lambda th, w, z, i: i * i * w,
     # at the exponent SHEAR_M0; a term model evaluates it at its own m (TermModel.term)
     SHEAR_TERM: lambda th, w, z, i, m=SHEAR_M0: smooth_power(w, m),
+    # a quadratic current law of the Coulomb torque (Family.apply_laws)
+    "i^2*sign(theta_dot)": lambda th, w, z, i: i * i * smooth_sign(w),
 }
 TORQUE_TERM_NAMES: tuple[str, ...] = tuple(TORQUE_TERMS)
 
@@ -104,6 +107,27 @@ HYSTERESIS_TERM_NAMES: tuple[str, ...] = tuple(HYSTERESIS_TERMS)
 
 # Torque terms that depend on z (zero contribution when the model has no hysteresis).
 Z_TORQUE_TERMS = ("z", "i*z", "|theta_dot|*z", "i^2*z")
+
+#: The torque terms a current multiplies, by group: the coefficient of ``i*<group>`` is a
+#: current law's slope. A term model's :attr:`TermModel.saturation` maps a group to the
+#: saturation current ``i0`` of its law.
+LAW_GROUPS = ("z", "theta_dot", "sign(theta_dot)")
+
+
+def effective_current(i, i0: float | None = None):
+    """The current a saturating law sees: ``i0 tanh(i / i0)`` (``i`` itself for no ``i0``).
+
+    Written so that the slope at 0 A is 1 whatever ``i0``, and the linear law is the limit
+    ``i0 -> infinity``; at large currents it levels off at ``i0``.
+
+    Examples
+    --------
+    >>> round(float(effective_current(0.5, 0.4)), 4), effective_current(0.5)
+    (0.3393, 0.5)
+    """
+    if i0 is None:
+        return i
+    return i0 * np.tanh(np.asarray(i, dtype=float) / i0) if np.ndim(i) else i0 * math.tanh(i / i0)
 
 
 @dataclass
@@ -126,6 +150,20 @@ class TermModel:
     delay : float
         Delay of the measured output behind the model's, in s (the ``channel_delay``
         effect): the output is recorded as ``y(t - delay)``; 0 for none.
+    saturation : dict
+        Saturating current laws: a group of :data:`LAW_GROUPS` -> its saturation current
+        ``i0`` (A). The ``i*<group>`` term of such a group sees the current
+        ``i0 tanh(i / i0)`` (:func:`effective_current`) instead of ``i``; its coefficient
+        stays the slope at 0 A. Empty: every law linear (a quadratic law is an ``i^2``
+        term).
+
+    Examples
+    --------
+    >>> tm = TermModel({"z": 0.5, "i*z": 3.0}, {"theta_dot": 1.0}, saturation={"z": 0.3})
+    >>> round(float(tm.eval_torque(0.0, 0.0, 1.0, 2.0)), 4)  # 0.5 + 3 * 0.3 tanh(2 / 0.3)
+    1.4
+    >>> print(tm.equations().splitlines()[0])
+    T = 0.5 z + 0.9 tanh(i/0.3)*z
     """
 
     torque: dict[str, float] = field(default_factory=dict)
@@ -134,6 +172,7 @@ class TermModel:
     J: float = 1.0
     m: float = SHEAR_M0
     delay: float = 0.0
+    saturation: dict[str, float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         for name in self.torque:
@@ -153,6 +192,21 @@ class TermModel:
         self.J = float(self.J)
         self.m = float(self.m)
         self.delay = float(self.delay)
+        self.saturation = {k: float(v) for k, v in self.saturation.items()}
+        for group, i0 in self.saturation.items():
+            if group not in LAW_GROUPS:
+                raise HystdiscError(
+                    f"no current law for the torque term group '{group}'; fix: use one of "
+                    f"{', '.join(LAW_GROUPS)}"
+                )
+            if not (i0 > 0.0 and math.isfinite(i0)):
+                raise HystdiscError(
+                    f"saturation current of '{group}' is {i0:g} A; fix: give a positive number"
+                )
+
+    def current(self, group: str, i):
+        """The current the ``i*<group>`` term sees (:func:`effective_current`)."""
+        return effective_current(i, self.saturation.get(group))
 
     def torque_vector(self) -> np.ndarray:
         """Coefficients in ``TORQUE_TERM_NAMES`` order (absent terms are 0)."""
@@ -178,6 +232,8 @@ class TermModel:
         """
         if name == SHEAR_TERM:
             return TORQUE_TERMS[name](theta, theta_dot, z, i, self.m)
+        if name.startswith("i*") and name[2:] in self.saturation:
+            i = self.current(name[2:], i)
         return TORQUE_TERMS[name](theta, theta_dot, z, i)
 
     def eval_torque(self, theta, theta_dot, z, i) -> np.ndarray:
@@ -204,7 +260,8 @@ class TermModel:
         for k, v in other.hysteresis.items():
             hyst[k] = hyst.get(k, 0.0) + v
         m = self.m if SHEAR_TERM in self.torque else other.m
-        return TermModel(torque, hyst, self.n, self.J, m, self.delay)
+        sat = {**other.saturation, **self.saturation}
+        return TermModel(torque, hyst, self.n, self.J, m, self.delay, sat)
 
     def equations(self, precision: int = 4) -> str:
         """pysindy-style two-line print of the model (a third line for a channel delay).
@@ -223,7 +280,7 @@ class TermModel:
 
         rate = format_equation("dz/dt", self.hysteresis, precision)
         rate = rate.replace("*|z|^(n-1)", power(self.n - 1.0)).replace("*|z|^n", power(self.n))
-        torque = format_equation("T", self.torque, precision)
+        torque = format_equation("T", self.torque, precision, self.saturation)
         torque = torque.replace("|theta_dot|^m", f"|theta_dot|^{self.m:.{precision}g}")
         out = torque + "\n" + rate
         if self.delay:
@@ -231,13 +288,25 @@ class TermModel:
         return out
 
 
-def format_equation(lhs: str, coefs: Mapping[str, float], precision: int = 4) -> str:
-    """Format ``lhs = c1 term1 + c2 term2`` like pysindy's ``print()``."""
+def format_equation(
+    lhs: str,
+    coefs: Mapping[str, float],
+    precision: int = 4,
+    saturation: Mapping[str, float] | None = None,
+) -> str:
+    """Format ``lhs = c1 term1 + c2 term2`` like pysindy's ``print()``.
+
+    A saturating term ``i*<group>`` (``saturation``: group -> ``i0``) is printed as
+    ``c i0 tanh(i/i0)*<group>``."""
     parts = []
+    sat = saturation or {}
     for name, c in coefs.items():
         if c == 0.0:
             continue
         term = "" if name == "1" else f" {name}"
+        if name.startswith("i*") and name[2:] in sat:
+            i0 = sat[name[2:]]
+            c, term = c * i0, f" tanh(i/{i0:.{precision}g})*{name[2:]}"
         parts.append(f"{c:.{precision}g}{term}")
     rhs = " + ".join(parts) if parts else "0"
     return f"{lhs} = {rhs}".replace("+ -", "- ")

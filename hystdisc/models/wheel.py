@@ -183,7 +183,9 @@ class TermsOnCompliantWheel(StateSpaceModel):
         rig = {k: v for k, v in terms.torque.items() if k in RIG_TERMS}
         damper = {k: v for k, v in terms.torque.items() if k not in RIG_TERMS}
         self.rig = TermModel(rig)
-        self.damper = TermModel(damper, dict(terms.hysteresis), terms.n, terms.J, terms.m)
+        self.damper = TermModel(
+            damper, dict(terms.hysteresis), terms.n, terms.J, terms.m, saturation=terms.saturation
+        )
 
     def run_parameters(self, values: Mapping[str, float], current: float) -> np.ndarray:
         v = self.check(values)

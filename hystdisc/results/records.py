@@ -37,6 +37,8 @@ def term_model_to_dict(tm: TermModel) -> dict:
         out["m"] = tm.m
     if tm.delay:
         out["delay"] = tm.delay  # the channel delay [s] (absent: 0, as older records)
+    if tm.saturation:
+        out["saturation"] = dict(tm.saturation)  # saturating current laws (absent: linear)
     return out
 
 
@@ -49,6 +51,7 @@ def term_model_from_dict(d: Any) -> TermModel:
         float(d.get("J", 1.0)),
         float(d.get("m", SHEAR_M0)),
         float(d.get("delay", 0.0) or 0.0),
+        {k: float(v) for k, v in (d.get("saturation") or {}).items()},
     )
 
 
@@ -71,7 +74,9 @@ class TermModelRecord(Record):
         absent in records without it).
     extra : dict
         Keys this version does not know (kept on a round trip); ``m``, the exponent of
-        the shear-thinning term, when the model has that term.
+        the shear-thinning term, when the model has that term; ``saturation`` (schema 5),
+        the saturation current ``i0`` of each group of current terms whose law saturates
+        (:attr:`~hystdisc.models.TermModel.saturation`), when the model has one.
     """
 
     torque: dict[str, float] = field(default_factory=dict)
@@ -90,6 +95,7 @@ class TermModelRecord(Record):
         """The :class:`~hystdisc.models.TermModel` (ValueError/TypeError when malformed)."""
         tm = term_model_from_dict(self)
         values = [*tm.torque.values(), *tm.hysteresis.values(), tm.n, tm.J, tm.m, tm.delay]
+        values += list(tm.saturation.values())
         if not all(math.isfinite(v) for v in values):
             raise ValueError("a coefficient is not finite")
         return tm

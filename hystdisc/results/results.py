@@ -10,8 +10,10 @@ hystdisc 0.1 (the same keys, no ``schema_version``); schema 2 added ``schema_ver
 schema 3 added the held-out judging and admissibility (``conditions``, ``envelope``,
 ``selection_note``, each family's and the final model's ``admissible`` and
 ``violations``, each effect's ``heldout_rms_before``/``heldout_rms_after``); schema 4
-added the state-space families (each family's ``system``, the final ``system_model``).
-Older files are read as they are (the new keys absent) and written back as schema 4. A file of a newer schema is refused. To change the schema: add the attribute
+added the state-space families (each family's ``system``, the final ``system_model``);
+schema 5 added the current laws the final model carries (a term model's ``saturation``,
+a law's ``<law>_i0`` or ``<law>_i2`` among the parameters and the system's values).
+Older files are read as they are (the new keys absent) and written back as schema 5. A file of a newer schema is refused. To change the schema: add the attribute
 to its record (with a default, documented), bump :data:`SCHEMA_VERSION`, and migrate older
 tables in :func:`migrate`.
 
@@ -22,7 +24,7 @@ Examples
 ...     "families": {}, "model": {"torque": {"z": 1.0}}, "effects": [], "unexplained": False,
 ...     "residual": {}})
 >>> r.family, r.schema_version, r.model.torque
-('dahl', 4, {'z': 1.0})
+('dahl', 5, {'z': 1.0})
 >>> Results.from_json(r.to_json()).summary() == r.summary()
 True
 >>> list(r.summary())[:3]
@@ -54,7 +56,7 @@ from hystdisc.results.records import (
 )
 
 #: The ``results.json`` schema this version writes (1: hystdisc 0.1, no ``schema_version``).
-SCHEMA_VERSION = 4
+SCHEMA_VERSION = 5
 
 _FIX_RERUN = "fix: rerun hystdisc discover --json"
 
@@ -73,7 +75,7 @@ def migrate(data: dict) -> dict:
     Examples
     --------
     >>> migrate({"family": "dahl"})
-    {'schema_version': 4, 'family': 'dahl'}
+    {'schema_version': 5, 'family': 'dahl'}
     """
     version = data.get("schema_version", 1)
     if isinstance(version, bool) or not isinstance(version, int) or version < 1:
@@ -352,8 +354,10 @@ class Results(Record):
             return system, values
         try:
             fam = get_family(rec["family"])
-            system = fam.system(rec["experiment"], tuple(rec.get("effects", ())))
             values = {k: float(v) for k, v in rec["values"].items()}
+            # a current law that is not linear: its coefficient is among the values
+            laws = fam.laws_of(values)
+            system = fam.system(rec["experiment"], tuple(rec.get("effects", ())), laws)
             system.check(values)
         except (KeyError, TypeError, ValueError, AttributeError, HystdiscError) as exc:
             raise _no_model(family, exc) from None

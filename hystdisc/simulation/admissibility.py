@@ -75,6 +75,7 @@ def _damper(tm: TermModel) -> TermModel:
         tm.n,
         tm.J,
         tm.m,
+        saturation=dict(tm.saturation),
     )
 
 

@@ -41,7 +41,7 @@ def damper_terms(model: Model | TermModel | str) -> TermModel:
         model = Model(model)
     tm = model.to_terms() if isinstance(model, Model) else model
     torque = {k: v for k, v in tm.torque.items() if k not in _RIG_TERMS}
-    return TermModel(torque, dict(tm.hysteresis), tm.n, tm.J, tm.m)
+    return TermModel(torque, dict(tm.hysteresis), tm.n, tm.J, tm.m, saturation=dict(tm.saturation))
 
 
 def loop(

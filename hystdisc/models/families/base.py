@@ -4,8 +4,15 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-from hystdisc.models.params import Param
-from hystdisc.models.terms import TermModel
+from hystdisc.errors import HystdiscError
+from hystdisc.models.params import BIG, Param
+from hystdisc.models.terms import TermModel, effective_current
+
+#: The current laws a law parameter may follow (see :meth:`Family.law_value`).
+CURRENT_LAWS = ("linear", "quadratic", "saturating")
+#: The suffix of the extra coefficient of a law that is not linear: ``<law>_i2`` (per A^2)
+#: or ``<law>_i0`` (the saturation current, A).
+LAW_SUFFIX = {"quadratic": "_i2", "saturating": "_i0"}
 
 
 class Family:
@@ -23,6 +30,10 @@ class Family:
     #: parameters whose value at current ``i`` is ``passive + slope * i`` (the seed's
     #: linear law; the staged fit of issue 15 chooses among other laws for them).
     current_laws: Mapping[str, tuple[str, str]] = {}
+    #: Term families: each current law's group of torque terms (law name -> a group of
+    #: :data:`~hystdisc.models.terms.LAW_GROUPS`: the law's slope is the coefficient of
+    #: ``i*<group>``), where :meth:`apply_laws` puts a law that is not linear.
+    law_terms: Mapping[str, str] = {}
     #: Torque terms whose coefficient is one parameter (term -> parameter name), in the
     #: order of the term form.
     linear_torque: Mapping[str, str] = {}
@@ -38,6 +49,123 @@ class Family:
     def linear_coefs(self, p: Mapping[str, float]) -> dict[str, float]:
         """Coefficients of the :attr:`linear_torque` terms for the parameters ``p``."""
         return {term: p[name] for term, name in self.linear_torque.items()}
+
+    # -- current laws: a law name of current_laws follows a linear, quadratic or saturating
+    #    law of the current; the law's extra coefficient is a parameter of its own
+    def check_laws(self, laws: Mapping[str, str] | None) -> dict[str, str]:
+        """The laws that are not linear among ``laws`` (law name -> law), checked.
+
+        Examples
+        --------
+        >>> from hystdisc.models import get_family
+        >>> get_family("dahl").check_laws({"k_w": "saturating"})
+        {'k_w': 'saturating'}
+        >>> get_family("dahl").check_laws({"alpha": "linear"})
+        Traceback (most recent call last):
+        ...
+        hystdisc.errors.HystdiscError: dahl has no current law 'alpha'; fix: use one of k_w
+        """
+        out = {}
+        for key, law in (laws or {}).items():
+            if key not in self.current_laws:
+                raise HystdiscError(
+                    f"{self.name} has no current law '{key}'; fix: use one of "
+                    f"{', '.join(self.current_laws) or '(none)'}"
+                )
+            if law not in CURRENT_LAWS:
+                raise HystdiscError(
+                    f"unknown current law '{law}'; fix: use one of {', '.join(CURRENT_LAWS)}"
+                )
+            if law != "linear":
+                out[key] = law
+        return out
+
+    def law_params(self, laws: Mapping[str, str] | None) -> tuple[Param, ...]:
+        """The extra coefficients of ``laws`` (law name -> law): ``<law>_i0`` of a
+        saturating law, ``<law>_i2`` of a quadratic one.
+
+        Examples
+        --------
+        >>> from hystdisc.models import get_family
+        >>> [(p.name, p.unit) for p in get_family("bouc-wen").law_params(
+        ...     {"alpha": "saturating", "c": "quadratic"})]
+        [('alpha_i0', 'A'), ('c_i2', 'N*m*s/(rad*A)/A')]
+        """
+        units = {p.name: p.unit for p in self.params}
+        out = []
+        for key, law in self.check_laws(laws).items():
+            slope = self.current_laws[key][1]
+            name = key + LAW_SUFFIX[law]
+            if law == "saturating":
+                doc = f"saturation current of {key} (slope {slope} at 0 A)"
+                out.append(Param(name, "A", 1e-6, BIG, 1.0, doc))
+            else:
+                doc = f"quadratic coefficient of {key}"
+                out.append(Param(name, f"{units.get(slope, '-')}/A", -BIG, BIG, 0.0, doc))
+        return tuple(out)
+
+    def laws_of(self, names) -> dict[str, str]:
+        """The laws that are not linear in a set of parameter names (``alpha_i0`` in it:
+        ``alpha`` saturating)."""
+        out = {}
+        for key in self.current_laws:
+            for law, suffix in LAW_SUFFIX.items():
+                if key + suffix in names:
+                    out[key] = law
+        return out
+
+    def law_value(self, p: Mapping[str, float], key: str, current: float) -> float:
+        """The value of law ``key`` at ``current`` for the parameters ``p``: ``a + b s(i)
+        + q i^2`` with ``a``, ``b`` the passive parameter and its slope, ``s(i) =
+        i0 tanh(i / i0)`` when ``p`` has ``<key>_i0`` (else ``i``) and ``q`` its
+        ``<key>_i2`` (else 0).
+
+        Examples
+        --------
+        >>> from hystdisc.models import get_family
+        >>> sp = get_family("spencer")
+        >>> p = {"alpha_a": 0.5, "alpha_b": 3.0, "alpha_i0": 0.3}
+        >>> round(sp.law_value(p, "alpha", 2.0), 4), sp.law_value({"alpha_a": 0.5, "alpha_b": 3.0}, "alpha", 2.0)
+        (1.4, 6.5)
+        """
+        passive, slope = self.current_laws[key]
+        s = effective_current(float(current), p.get(key + LAW_SUFFIX["saturating"]))
+        q = p.get(key + LAW_SUFFIX["quadratic"], 0.0)
+        return float(p[passive] + p[slope] * s + q * current * current)
+
+    def apply_laws(self, tm: TermModel, p: Mapping[str, float]) -> TermModel:
+        """Put the laws that are not linear in ``p`` into the term model ``tm`` (a term
+        family): a saturating law's ``i0`` into ``tm.saturation`` of its group
+        (:attr:`law_terms`), a quadratic law's coefficient on the ``i^2*<group>`` term.
+
+        Examples
+        --------
+        >>> from hystdisc.models import get_family
+        >>> bw = get_family("bouc-wen")
+        >>> tm = bw.apply_laws(bw.to_terms({**bw.defaults(), "alpha_i0": 0.4}),
+        ...                    {"alpha_i0": 0.4, "c_i2": -0.1})
+        >>> tm.saturation, tm.torque["i^2*theta_dot"]
+        ({'z': 0.4}, -0.1)
+        """
+        for key, law in self.laws_of(p).items():
+            group = self.law_terms[key]
+            value = float(p[key + LAW_SUFFIX[law]])
+            if law == "saturating":
+                tm.saturation[group] = value
+            else:
+                tm.torque[f"i^2*{group}"] = tm.torque.get(f"i^2*{group}", 0.0) + value
+        return tm
+
+    def law_equations(self, laws: Mapping[str, str] | None) -> str:
+        """One line per law that is not linear, e.g. ``alpha = alpha_1 +
+        alpha_2*alpha_i0*tanh(i/alpha_i0)`` (empty when every law is linear)."""
+        lines = []
+        for key, law in self.check_laws(laws).items():
+            a, b = self.current_laws[key]
+            x = key + LAW_SUFFIX[law]
+            rhs = f"{b}*{x}*tanh(i/{x})" if law == "saturating" else f"{b}*i + {x}*i^2"
+            lines.append(f"{key} = {a} + {rhs}")
+        return "\n".join(lines)
 
     def to_terms(self, p: Mapping[str, float]) -> TermModel:  # pragma: no cover - abstract
         raise NotImplementedError
@@ -68,13 +196,20 @@ class SystemFamily(Family):
 
     is_system = True
 
-    def system(self, experiment: str, effects: tuple[str, ...] = ()):
+    def system(
+        self,
+        experiment: str,
+        effects: tuple[str, ...] = (),
+        laws: Mapping[str, str] | None = None,
+    ):
         """The :class:`~hystdisc.models.system.FamilySystem` of this family for an
-        experiment type, with the torque terms of ``effects`` added (the family's compiled
-        ``driven_*``/``mech_*`` functions, states and :meth:`block`)."""
+        experiment type, with the torque terms of ``effects`` added and the current
+        ``laws`` that are not linear (law name -> law; their coefficients are parameters:
+        :meth:`Family.law_params`) (the family's compiled ``driven_*``/``mech_*``
+        functions, states and :meth:`block`)."""
         from hystdisc.models.system import FamilySystem  # system.py builds on families
 
-        return FamilySystem(self, experiment, effects)
+        return FamilySystem(self, experiment, effects, laws)
 
     def derived(self, p: Mapping[str, float]) -> dict[str, float]:
         """Identifiable combinations of the parameters ``p`` (none by default)."""

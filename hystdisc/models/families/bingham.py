@@ -20,6 +20,7 @@ class Bingham(Family):
     normalization = "none (no hysteretic state)"
     current_params = ("c_b", "f_b")
     current_laws = {"c": ("c_a", "c_b"), "f": ("f_a", "f_b")}
+    law_terms = {"c": "theta_dot", "f": "sign(theta_dot)"}
     linear_torque = {
         "theta_dot": "c_a",
         "i*theta_dot": "c_b",

@@ -33,6 +33,7 @@ class BoucWen(Family):
     normalization = "z_sat = 1 (delta = beta + gamma)"
     current_params = ("alpha_2", "c_2")
     current_laws = {"alpha": ("alpha_1", "alpha_2"), "c": ("c_1", "c_2")}
+    law_terms = {"alpha": "z", "c": "theta_dot"}
     torque_terms = ("theta_dot", "i*theta_dot", "z", "i*z")
     linear_torque = {"z": "alpha_1", "i*z": "alpha_2", "theta_dot": "c_1", "i*theta_dot": "c_2"}
     hysteresis_terms = ("theta_dot", "theta_dot*|z|^n", "|theta_dot|*z*|z|^n")

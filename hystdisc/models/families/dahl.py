@@ -20,6 +20,7 @@ class Dahl(Family):
     normalization = "w saturates at 1 (by construction)"
     current_params = ("k_wb",)
     current_laws = {"k_w": ("k_wa", "k_wb")}
+    law_terms = {"k_w": "z"}
     linear_torque = {"theta_dot": "k_x", "z": "k_wa", "i*z": "k_wb"}
     torque_terms = tuple(linear_torque)
     hysteresis_terms = ("theta_dot", "|theta_dot|*z")

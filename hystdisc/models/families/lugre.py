@@ -26,6 +26,7 @@ class LuGre(Family):
     hysteresis_terms = ("theta_dot", "|theta_dot|*z")
     current_params = ("sigma_b",)
     current_laws = {"sigma_v": ("sigma_2", "sigma_b")}
+    law_terms = {"sigma_v": "theta_dot"}
 
     def to_terms(self, p):
         r = p["sigma_0"] * p["a_0"]

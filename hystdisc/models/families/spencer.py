@@ -9,6 +9,9 @@ ties the node to the other end, and ``k1`` is the accumulator's spring::
     z'     = A (x' - y') - beta (x' - y') |z|^n - gamma |x' - y'| z |z|^(n-1)
     alpha  = alpha_a + alpha_b i,   c0 = c0_a + c0_b i,   c1 = c1_a + c1_b i
 
+(each a linear current law; a saturating or quadratic one when the model carries its
+coefficient, ``alpha_i0`` or ``alpha_i2``, ...: :meth:`~hystdisc.models.Family.law_value`).
+
 For a rotary damper read angles and torques. The states are the stretch ``d = x - y`` of
 the Bouc-Wen element and ``z`` (both start at 0: the node starts with the motion).
 
@@ -143,7 +146,16 @@ class Spencer(SystemFamily):
     mech_output = staticmethod(_mech_output)
 
     def block(self, p: Mapping[str, float], current: float) -> np.ndarray:
-        """The family's part of the parameter vector at ``current`` (see the module)."""
+        """The family's part of the parameter vector at ``current`` (see the module; the
+        current laws folded in by :meth:`~hystdisc.models.Family.law_value`, a saturating
+        or quadratic law when ``p`` has its coefficient).
+
+        Examples
+        --------
+        >>> p = {**SPENCER.defaults(), "alpha_a": 0.5, "alpha_b": 3.0, "alpha_i0": 0.3}
+        >>> round(float(SPENCER.block(p, 2.0)[6]), 4)  # alpha = 0.5 + 3 * 0.3 tanh(2 / 0.3)
+        1.4
+        """
         i = float(current)
         b, g = p["beta"], p["A"] - p["beta"]  # z saturates at 1: gamma = A - beta
         return np.array(
@@ -154,9 +166,9 @@ class Spencer(SystemFamily):
                 0.0,
                 -g,
                 p["n"],
-                p["alpha_a"] + p["alpha_b"] * i,
-                p["c0_a"] + p["c0_b"] * i,
-                p["c1_a"] + p["c1_b"] * i,
+                self.law_value(p, "alpha", i),
+                self.law_value(p, "c0", i),
+                self.law_value(p, "c1", i),
                 p["k0"],
                 p.get("k1", 0.0),
             ]
@@ -175,10 +187,10 @@ class Spencer(SystemFamily):
         """
         out = {"gamma": p["A"] - p["beta"]}
         for i in (0, 1):
-            c0 = p["c0_a"] + p["c0_b"] * i
-            c1 = p["c1_a"] + p["c1_b"] * i
+            c0 = self.law_value(p, "c0", i)
+            c1 = self.law_value(p, "c1", i)
             out[f"c_post_{i}"] = c0 * c1 / (c0 + c1)
-            out[f"alpha_yield_{i}"] = (p["alpha_a"] + p["alpha_b"] * i) * c1 / (c0 + c1)
+            out[f"alpha_yield_{i}"] = self.law_value(p, "alpha", i) * c1 / (c0 + c1)
         return out
 
     def starts(

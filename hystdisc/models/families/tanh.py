@@ -115,8 +115,8 @@ class Tanh(SystemFamily):
         i = float(current)
         return np.array(
             [
-                p["c_a"] + p["c_b"] * i,
-                p["alpha_a"] + p["alpha_b"] * i,
+                self.law_value(p, "c", i),
+                self.law_value(p, "alpha", i),
                 p["beta"],
                 p["delta"],
                 p.get("k", 0.0),
