@@ -6,6 +6,7 @@ See :func:`read_csv`; :func:`hystdisc.data.write_csv` writes the same format.
 from __future__ import annotations
 
 import os
+import warnings
 from collections.abc import Mapping
 
 import numpy as np
@@ -22,7 +23,7 @@ from hystdisc.data.dataset import (
 from hystdisc.data.text import data_lines, guess_delimiter, parse_floats, read_text, split_rows
 from hystdisc.data.units import apply_units
 from hystdisc.data.validation import validate
-from hystdisc.errors import input_error
+from hystdisc.errors import HystdiscWarning, input_error
 
 __all__ = ["read_csv"]
 
@@ -53,7 +54,8 @@ def read_csv(
     Dataset
         Checked with ``validate(dataset, need_currents=1)``. Without a ``run`` column the
         whole file is one run named ``"0"``; rows are grouped by run id in order of first
-        appearance.
+        appearance. Without a ``current`` column every run is at 0 A (a rig without a
+        coil), with a warning.
 
     Raises
     ------
@@ -86,6 +88,15 @@ def read_csv(
         else infer_experiment(present, source)
     )
     _check_needed(where, header, exp, source)
+    current = None
+    if where["current"] is None:  # a rig without a coil: one current, 0 A
+        current = 0.0
+        warnings.warn(
+            f"{source}: no 'current' column: every run is taken at 0 A (a rig without a "
+            f"coil); fix: add a 'current' column, or map yours with {COLUMN_FLAG} current=NAME",
+            HystdiscWarning,
+            stacklevel=2,
+        )
     linenos, rows = split_rows(lines[1:], delimiter, source, len(header), "as many as the header")
     wanted = [c for c in needed_columns(exp) + ["theta_dot"] if where[c] is not None]
     cols: dict[str, np.ndarray] = {}
@@ -95,7 +106,7 @@ def read_csv(
         cols[canon] = parse_floats([r[i] for r in rows], linenos, source, header[i])
     run_ids = [r[where["run"]] for r in rows] if where["run"] is not None else None
     apply_units(cols, units, source)
-    ds = build_dataset(cols, run_ids, linenos, source, exp)
+    ds = build_dataset(cols, run_ids, linenos, source, exp, current=current)
     validate(ds, need_currents=1)
     return ds
 
@@ -151,7 +162,7 @@ def _check_needed(
 ) -> None:
     """Every column the experiment needs is in the header."""
     for canon in needed_columns(exp):
-        if where[canon] is None:
+        if where[canon] is None and canon != "current":  # no current: 0 A, with a warning
             why = f" (a {exp} experiment needs it)" if canon == extra_column(exp) else ""
             raise input_error(
                 source,
