@@ -43,9 +43,12 @@ Examples
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
+
+from hystdisc.data import Run
 
 #: Neighbours on each side of a sample that predict it (leave-one-out cubic).
 HALF = 4
@@ -67,7 +70,15 @@ MAX_FRACTION = 0.01
 #: noise-free simulation still has its integration error).
 REL_FLOOR = 1e-6
 
-__all__ = ["Glitches", "Outliers", "confirm", "find_glitches", "screen_signals"]
+__all__ = [
+    "Glitches",
+    "Outliers",
+    "confirm",
+    "confirm_glitches",
+    "find_glitches",
+    "screen_runs",
+    "screen_signals",
+]
 
 
 @dataclass
@@ -354,19 +365,27 @@ def confirm(
     threshold: float = THRESHOLD,
 ) -> tuple[list[dict], list[dict]]:
     """Split the glitches of the output into those the fitted model does not explain
-    (outliers) and those it reproduces within ``threshold`` noise std (features).
+    (outliers) and those it reproduces (features).
 
+    A glitch stays an outlier when its residual (measured minus simulated) exceeds
+    ``threshold`` times the larger of ``noise_std`` and the robust scale of the residual
+    of the :data:`HALF` * 3 samples on each side (``1.4826 * median |r|``: an imperfect
+    model's residual is larger than the noise everywhere, a glitch stands out of it).
     ``y`` and ``predictions`` are each run's measured and simulated output over the
     samples of the fit (a glitch beyond them, in a trimmed tail, stays an outlier with
-    ``fitted`` False).
+    ``fitted`` False and ``residual`` None).
 
     Examples
     --------
-    >>> y, p = [np.array([0.0, 0.05, 0.0])], [np.array([0.0, 0.0, 0.0])]
-    >>> g = {"run": "a", "signal": "theta", "sample": 1, "t": 0.1, "size": 0.05}
+    >>> y, p = [np.zeros(30)], [np.zeros(30)]
+    >>> y[0][10] = 0.05
+    >>> g = {"run": "a", "signal": "theta", "sample": 10, "t": 0.1, "size": 0.05}
     >>> out, feat = confirm([g], ["a"], y, p, 1e-3)
     >>> len(out), len(feat), out[0]["residual"]
     (1, 0, 0.05)
+    >>> out, feat = confirm([g], ["a"], y, y, 1e-3)  # the model reproduces it
+    >>> len(out), len(feat)
+    (0, 1)
     """
     where = {n: k for k, n in enumerate(names)}
     out, feat = [], []
@@ -377,6 +396,83 @@ def confirm(
             g["residual"], g["fitted"] = None, False
             out.append(g)
             continue
-        g["residual"] = float(y[k][i] - predictions[k][i])
-        (out if abs(g["residual"]) > threshold * noise_std else feat).append(g)
+        r = np.asarray(y[k], dtype=float) - np.asarray(predictions[k], dtype=float)
+        g["residual"] = float(r[i])
+        near = np.r_[r[max(0, i - 3 * HALF) : i], r[i + 1 : i + 3 * HALF + 1]]
+        near = near[np.isfinite(near)]
+        local = 1.4826 * float(np.median(np.abs(near))) if near.size else 0.0
+        (out if abs(r[i]) > threshold * max(noise_std, local) else feat).append(g)
     return out, feat
+
+
+def screen_runs(
+    runs: list[Run], experiment, noise_std: float, theta_noise: float
+) -> tuple[list[Run], list[np.ndarray], list[np.ndarray], list[dict]]:
+    """Screen the measured signals of every run (the angle, and the output when it is
+    another signal: a driven torque) before anything is fitted.
+
+    Parameters
+    ----------
+    runs : list of Run
+        The runs as measured.
+    experiment : Experiment
+        Their experiment type (its ``output`` names the fitted signal).
+    noise_std, theta_noise : float
+        Noise standard deviation of the output and of the angle.
+
+    Returns
+    -------
+    clean : list of Run
+        The runs with every glitch replaced by its local prediction (stage 1 works on them).
+    raw_output : list of ndarray
+        Each run's output as measured (the output-error fit compares with it).
+    flags : list of ndarray of bool
+        Each run's output samples that are glitches (left out of the residual).
+    items : list of dict
+        Every glitch (:attr:`Outliers.items` keys; not yet confirmed by a fit).
+    """
+    names, times = [r.name for r in runs], [r.t for r in runs]
+    raw = [np.asarray(getattr(r, experiment.output), dtype=float) for r in runs]
+    th, th_flags, items = screen_signals(
+        names, times, [r.theta for r in runs], theta_noise, "theta"
+    )
+    clean = [dataclasses.replace(r, theta=x) for r, x in zip(runs, th, strict=True)]
+    if experiment.output == "theta":
+        return clean, raw, th_flags, items
+    out, flags, more = screen_signals(names, times, raw, noise_std, experiment.output)
+    clean = [
+        dataclasses.replace(r, **{experiment.output: x}) for r, x in zip(clean, out, strict=True)
+    ]
+    return clean, raw, flags, items + more
+
+
+def confirm_glitches(items: list[dict], data, predictions: list[np.ndarray]) -> Outliers:
+    """The outliers of a dataset once the selected family is fitted.
+
+    Glitches of the output the model reproduces (:func:`confirm`) are features: they
+    enter the residual again (``data.mask`` is set back in place). Glitches of the angle
+    of a driven experiment were replaced in the imposed motion and are reported as such.
+
+    Parameters
+    ----------
+    items : list of dict
+        From :func:`screen_runs`.
+    data : FitData
+        The runs as the fit saw them (``names``, ``y``, ``mask``, ``noise_std``).
+    predictions : list of ndarray
+        Each run's simulated output of the selected fit.
+
+    Returns
+    -------
+    Outliers
+    """
+    output = data.exp.output
+    mine = [g for g in items if g["signal"] == output]
+    other = [g for g in items if g["signal"] != output]
+    out, feat = confirm(mine, data.names, data.y, predictions, data.noise_std)
+    where = {n: k for k, n in enumerate(data.names)}
+    for g in feat:
+        data.mask[where[g["run"]]][g["sample"]] = True
+    order = {n: k for k, n in enumerate(data.names)}
+    every = sorted(out + other, key=lambda g: (order.get(g["run"], -1), g["sample"]))
+    return Outliers(every, feat)

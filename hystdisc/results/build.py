@@ -141,7 +141,7 @@ def build_results(disc: Any, dataset: Any) -> Results:
     with ``terms``, ``bic``, ``inclusion``), ``discovered_fit_``, ``family_fits_``,
     ``family_``, ``declared_``, ``equal_fits_``, ``fit_data_`` (its ``mask``, ``names``,
     ``folds()``, ``heldout_by``), ``conditions_``, ``envelope_``, ``admissibility_``,
-    ``final_admissibility_``, ``selection_note_``, ``loop_``
+    ``final_admissibility_``, ``selection_note_``, ``outliers_`` (its ``to_dict()``), ``loop_``
     (the closing loop's ``LoopResult``, or None when it did not run: ``accepted``,
     ``tried``, ``skipped``, ``diagnosis``, ``unexplained``, ``unexplained_text``,
     ``residual``, ``fit``, ``effects``), the parameters ``input_hold`` and ``seed``, and
@@ -207,6 +207,9 @@ def build_results(disc: Any, dataset: Any) -> Results:
         "selection_note": disc.selection_note_,
         "system_model": system_entry(final),
     }
+    outliers = getattr(disc, "outliers_", None)
+    if outliers is not None:  # the isolated glitches left out of the fits
+        data["outliers"] = outliers.to_dict()
     staged = getattr(disc, "staged_", None)
     if staged is not None:  # the seed's flowchart: per-level fits and current laws
         data["current_laws"] = staged.to_dict(disc.fit_data_.names)
