@@ -203,8 +203,8 @@ def test_every_attribute_is_documented():
 # ----------------------------------------------------------------------------- a real fit
 
 #: Keys schema 3 added: after ``seed`` at the top, after ``n_params`` in a family, at the
-#: end of ``final``.
-NEW_TOP = ["conditions", "envelope", "selection_note", "system_model"]
+#: end of ``final`` (and the later ``system_model`` and ``outliers``).
+NEW_TOP = ["conditions", "envelope", "selection_note", "system_model", "outliers"]
 NEW_FAMILY = ["admissible", "violations"]
 
 

