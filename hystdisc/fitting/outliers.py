@@ -7,7 +7,10 @@ neighbours on each side (the sample itself and samples already flagged left out)
 signal smooth at the sampling scale the prediction error is the noise times the
 prediction's gain ``g = sqrt(1 + sum w^2)`` (about 1.1 inside a record, up to ~2 at its
 ends, where the neighbours lie on one side); a sample whose error exceeds
-:data:`THRESHOLD` (7) times ``g`` times the noise standard deviation is a candidate.
+:data:`THRESHOLD` (7) times ``g`` times the noise standard deviation is a candidate. A candidate is a glitch only if it also stands out of its neighbourhood (the
+threshold is taken on the larger of the noise and the robust scale of its neighbours'
+errors, so a signal bending faster than the samples follow is not flagged) and disagrees
+with the quadratic extrapolation of each side (:data:`ONE_SIDED`; a kink agrees with one).
 Candidates are taken one local maximum at a time, each left out of its neighbours'
 predictions before they are judged again, so that one spike never makes its neighbours
 look wrong. A group of more than :data:`MAX_GLITCH` consecutive candidates is not a
@@ -29,8 +32,11 @@ with it.
 
 False alarms: a Gaussian sample exceeds 7 sigma with probability 2.6e-12, one in 1e6
 records of 30 000 samples; a quantized signal's error is bounded well below the threshold
-(its noise is uniform). Detection: a glitch larger than about 8 noise standard deviations
-(10 at the ends of a record) is found.
+(its noise is uniform). Detection: a glitch larger than about 10 noise standard deviations is
+found (the one-sided test's 4 x 2.4). Measured: no sample flagged in 4.5 million samples of
+clean release data (6 families x 20 seeds, 1 mrad noise), nor in the 30 measured MR
+damper runs and the Bouc-Wen benchmark record (404 000 samples); every one of 180
+spikes of 50 noise std found at its sample.
 
 Examples
 --------
