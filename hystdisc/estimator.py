@@ -79,7 +79,9 @@ from hystdisc.fitting import (
     OutputErrorFitter,
     TermParametrization,
     apply_filter,
+    confirm_glitches,
     predict_dataset,
+    screen_runs,
     staged_fit,
 )
 from hystdisc.fitting.multistart import best_of_starts, nesting_pass, random_starts
@@ -273,6 +275,9 @@ class Discovery(BaseEstimator):
         The accepted effects.
     final_admissibility_ : Admissibility
         The final model's admissibility (a loud warning when it fails).
+    outliers_ : Outliers
+        The isolated glitches of the measured signals (:mod:`hystdisc.fitting.outliers`):
+        left out of every fit, reported under ``outliers`` in ``results.json``.
     staged_ : StagedFit or None
         The staged fit (``staged=True`` and 3 current levels or more), else None; its
         ``current_laws`` table is in ``results.json``. When it chose a law that is not
@@ -365,7 +370,7 @@ class Discovery(BaseEstimator):
         with ThreadPoolExecutor(max_workers=min(n, len(items))) as pool:
             return list(pool.map(work, items))
 
-    def _prepare(self, dataset: Dataset) -> tuple[EqData, FitData]:
+    def _prepare(self, dataset: Dataset) -> tuple[EqData, FitData, list[dict]]:
         name = self.experiment or dataset.experiment
         if name not in experiment_names():
             raise HystdiscError(
@@ -385,6 +390,9 @@ class Discovery(BaseEstimator):
         self.noise_ = measurement_noise(runs, exp)
         noise = self.noise_.std
         theta_noise = float(np.median([estimate_noise(r.theta, r.fs) for r in runs]))
+        # isolated glitches: replaced by their local prediction for stage 1 (derivatives,
+        # regression target), left out of the output-error residual (fitting/outliers.py)
+        runs, raw_y, flags, glitches = screen_runs(runs, exp, noise, theta_noise)
         if exp.starts_at_rest:
             runs = [trim_release(r, theta_noise) for r in runs]
         eq_t, eq_th, eq_w, eq_a, eq_y, rows = [], [], [], [], [], []
@@ -428,11 +436,12 @@ class Discovery(BaseEstimator):
                 eq_y.append(np.asarray(getattr(r, exp.target), dtype=float))
             rows.append(m)
             fd.t.append(r.t)
-            fd.y.append(np.asarray(getattr(r, exp.output), dtype=float))
+            fd.y.append(raw_y[len(fd.y)][: r.t.size])  # as measured, glitches masked
             fd.theta.append(d.theta if exp.motion_imposed else np.asarray(r.theta, dtype=float))
             fd.theta_dot.append(d.theta_dot)
             fd.u.append(np.asarray(r.input, dtype=float) if exp.has_input else np.zeros(r.t.size))
-            fd.mask.append(m if exp.motion_imposed else np.ones(r.t.size, dtype=bool))
+            keep = m if exp.motion_imposed else np.ones(r.t.size, dtype=bool)
+            fd.mask.append(keep & ~flags[len(fd.mask)][: r.t.size])
         if dataset.filter is not None:  # the fit sees the damper through the rig's filter
             windows = filter_windows(dataset.filter, runs, dataset.source)
             apply_filter(fd, windows, dataset.filter["channels"], [r.theta for r in runs])
@@ -463,7 +472,7 @@ class Discovery(BaseEstimator):
             max(1, int(np.median(windows)) // q),
             scale,
         )
-        return eq, fd
+        return eq, fd, glitches
 
     def _family_start(self, eq: EqData, name: str) -> dict[str, float]:
         # the stage-1 search of this shape is the natural start (no second grid search)
@@ -580,7 +589,7 @@ class Discovery(BaseEstimator):
                 stacklevel=2,
             )
         say("preparing data (noise, derivatives)")
-        eq, fd = self._prepare(dataset)
+        eq, fd, glitches = self._prepare(dataset)
         exp = get_experiment(eq.experiment)
         self.experiment_ = eq.experiment
         self.noise_std_ = fd.noise_std
@@ -701,6 +710,10 @@ class Discovery(BaseEstimator):
         )
         self.declared_ = self.model is not None
         selected = self.family_fits_[self.family_]
+        # a glitch the selected model reproduces is a feature: it enters the fits again
+        self.outliers_ = confirm_glitches(glitches, fd, selected.predictions)
+        if self.outliers_.count:
+            say(self.outliers_.summary())
         self.staged_ = None
         n_levels = distinct_currents(fd.currents).size
         if self.staged and n_levels >= MIN_STAGED_LEVELS:

@@ -203,12 +203,14 @@ def test_every_attribute_is_documented():
 # ----------------------------------------------------------------------------- a real fit
 
 #: Keys schema 3 added: after ``seed`` at the top, after ``n_params`` in a family, at the
-#: end of ``final``.
+#: end of ``final`` (and the later ``system_model`` and ``outliers``).
 NEW_TOP = ["conditions", "envelope", "selection_note", "system_model"]
 NEW_FAMILY = ["admissible", "violations"]
 #: Keys the measurement model added (issue 16 item 3; free keys, no schema change): at the
 #: top after the schema-3 keys, in the residual after ``peak_q``.
 NEW_TOP += ["noise", "encoder"]
+#: The outliers screen (issue 16 item 4; a free key): after them.
+NEW_TOP += ["outliers"]
 NEW_RESIDUAL = ["whiteness_test", "ljung_box_p"]
 
 

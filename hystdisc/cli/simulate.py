@@ -7,6 +7,7 @@ Examples::
     hystdisc simulate --model dahl --effect series_compliance:k_w=900,c_w=3,m_w=0.3 -o w.csv
     hystdisc simulate --model bouc-wen --set k_s=0 --experiment driven --drive 0.3@1 -o d.csv
     hystdisc simulate --scenario data_synth/dahl.toml --seed 7 -o dahl_seed7.csv
+    hystdisc simulate --model dahl --noise 1e-3 --spikes 6:0.05 -o dahl_spikes.csv
     hystdisc simulate --regenerate data_synth --force
 """
 
@@ -74,6 +75,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         ),
         ("--seed", "N", "random seed (default 0)"),
         ("--encoder-counts", "N", "quantize theta to 2*pi/N rad"),
+        (
+            "--spikes",
+            "N:SIZE",
+            "add N isolated glitches of +-SIZE (rad, or N*m on a driven torque) to single "
+            "samples of the measured signal, at random over all runs (seeded by --seed)",
+        ),
     ):
         p.add_argument(flag, metavar=metavar, help=text)
     p.add_argument(
@@ -196,6 +203,13 @@ def settings_from_args(args: argparse.Namespace) -> dict[str, Any]:
         sc["seed"] = _int(args.seed, "--seed")
     if args.encoder_counts is not None:
         sc["encoder_counts"] = _int(args.encoder_counts, "--encoder-counts")
+    if args.spikes is not None:
+        count, sep, size = args.spikes.partition(":")
+        if not sep:
+            raise HystdiscError(
+                f"--spikes {args.spikes!r} is not N:SIZE; fix: write e.g. --spikes 6:0.05"
+            )
+        sc["spikes"] = (_int(count, "--spikes count"), _float(size, "--spikes size"))
     if args.drive:
         sc["drives"] = [parse_drive(d) for d in args.drive]
     if args.input is not None:

@@ -14,6 +14,7 @@ filter) between the simulated and the recorded output.
 from hystdisc.fitting.data import FitData
 from hystdisc.fitting.lm import levenberg_marquardt
 from hystdisc.fitting.measurement import apply_filter
+from hystdisc.fitting.outliers import Outliers, confirm_glitches, screen_runs
 from hystdisc.fitting.output_error import OEFit, OutputErrorFitter
 from hystdisc.fitting.parametrization import (
     FamilyParametrization,
@@ -36,14 +37,17 @@ __all__ = [
     "FitData",
     "OEFit",
     "OutputErrorFitter",
+    "Outliers",
     "Parametrization",
     "StructuralParametrization",
     "StagedFit",
     "SystemParametrization",
     "TermParametrization",
     "family_parametrization",
+    "confirm_glitches",
     "levenberg_marquardt",
     "predict_dataset",
+    "screen_runs",
     "simulate_entries",
     "simulate_systems",
     "staged_fit",

@@ -47,6 +47,15 @@ class OverviewSections:
         cd = d.current_dependence
         if cd and not cd.get("identifiable", True):
             rows.append(["current dependence", f"not identifiable: {cd.get('note', '')}"])
+        if d.outliers is not None:
+            n = int(d.outliers.get("count", 0))
+            rows.append(
+                [
+                    "outliers",
+                    f"{n} isolated glitch{'' if n == 1 else 'es'} left out of the fit"
+                    + (f" (runs {', '.join(d.outliers.get('runs', []))}; see data)" if n else ""),
+                ]
+            )
         rows.append(["hystdisc", d.version or __version__])
         self.table(["item", "value"], rows, left=2)
         if d.equal_fits:
@@ -91,6 +100,27 @@ class OverviewSections:
             ["run", "current [A]", "samples", "fitted", "duration [s]", "fs [Hz]", f"{meas} range"],
             rows,
         )
+        out = (self.res.outliers or {}).get("items", [])
+        if out:
+            self.p(
+                f"{len(out)} isolated glitch{'' if len(out) == 1 else 'es'} (samples that disagree "
+                "with their neighbours while the neighbours agree with each other) were left out "
+                "of every fit and replaced by their local prediction for stage 1:"
+            )
+            self.table(
+                ["run", "signal", "t [s]", "sample", "size", "residual of the model"],
+                [
+                    [
+                        g["run"],
+                        g["signal"],
+                        num(g["t"], ".6g"),
+                        g["sample"],
+                        num(g["size"], ".3g"),
+                        "–" if g.get("residual") is None else num(g["residual"], ".3g"),
+                    ]
+                    for g in out
+                ],
+            )
         from hystdisc.plotting import plot_runs
 
         fig, axes = new_figure(1, 1, 10, 3.6)

@@ -202,7 +202,8 @@ def build_results(disc: Any, dataset: Any) -> Results:
     ``family_``, ``declared_``, ``equal_fits_``, ``fit_data_`` (its ``mask``, ``names``,
     ``folds()``, ``heldout_by``), ``conditions_``, ``envelope_``, ``admissibility_``,
     ``final_admissibility_``, ``selection_note_``, ``single_current_``, ``currents_``,
-    ``noise_`` (optional: the :class:`~hystdisc.data.NoiseEstimate`), ``loop_``
+    ``noise_`` (optional: the :class:`~hystdisc.data.NoiseEstimate`), ``outliers_`` (its
+    ``to_dict()``), ``loop_``
     (the closing loop's ``LoopResult``, or None when it did not run: ``accepted``,
     ``tried``, ``skipped``, ``diagnosis``, ``unexplained``, ``unexplained_text``,
     ``residual``, ``fit``, ``effects``), the parameters ``input_hold`` and ``seed``, and
@@ -279,6 +280,9 @@ def build_results(disc: Any, dataset: Any) -> Results:
     if noise is not None:  # the measurement, modelled: how the noise was estimated
         data["noise"] = noise.to_dict()
         data["encoder"] = noise.encoder.to_dict() if noise.encoder is not None else None
+    outliers = getattr(disc, "outliers_", None)
+    if outliers is not None:  # the isolated glitches left out of the fits
+        data["outliers"] = outliers.to_dict()
     staged = getattr(disc, "staged_", None)
     if staged is not None:  # the seed's flowchart: per-level fits and current laws
         data["current_laws"] = staged.to_dict(disc.fit_data_.names)

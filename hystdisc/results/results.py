@@ -187,6 +187,12 @@ class Results(Record):
         per-level values with intervals, the candidate laws' held-out errors, the chosen
         law and its coefficients, the joint fits (see
         :meth:`hystdisc.fitting.StagedFit.to_dict`); None without it.
+    outliers : dict or None
+        The isolated glitches of the measured signals, left out of every fit
+        (:meth:`hystdisc.fitting.Outliers.to_dict`): ``count``, ``runs``, ``items`` (each
+        glitch's ``run``, ``signal``, ``sample``, ``t``, ``size``, ``residual``,
+        ``fitted``), ``explained`` (candidates the model reproduces, kept in the fit),
+        ``threshold_sigma``, ``left_out``; None in files written before it.
     extra : dict
         Keys this version does not know (kept on a round trip).
     """
@@ -235,6 +241,7 @@ class Results(Record):
     current_laws: dict[str, Any] | None = None
     noise: dict[str, Any] | None = None
     encoder: dict[str, Any] | None = None
+    outliers: dict[str, Any] | None = None
     extra: dict[str, Any] = field(default_factory=dict, repr=False)
 
     # ----------------------------------------------------------------- JSON

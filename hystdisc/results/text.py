@@ -231,7 +231,41 @@ def report(res: Results) -> str:
         )
     out += effects_table(res)
     out += _residual_lines(res)
+    out += outlier_lines(res)
     return "\n".join(out)
+
+
+def outlier_lines(res: Results) -> list[str]:
+    """The isolated glitches left out of the fit (empty for a file without the key).
+
+    Examples
+    --------
+    >>> from hystdisc.results import Results
+    >>> r = Results(outliers={"count": 1, "runs": ["2"], "left_out": True, "items": [
+    ...     {"run": "2", "signal": "theta", "sample": 7, "t": 0.007, "size": 0.05}]})
+    >>> for line in outlier_lines(r)[1:]:
+    ...     print(line)
+    Outliers: 1 isolated glitch left out of the fit (run 2)
+      run 2, theta, t = 0.007 s (sample 7): +0.05
+    """
+    o = res.outliers
+    if not o:
+        return []
+    n = int(o.get("count", 0))
+    if n == 0:
+        return ["", f"Outliers: none (screen at {o.get('threshold_sigma', 7):g} noise std)"]
+    what = "left out of the fit" if o.get("left_out", True) else "reported only"
+    runs = ", ".join(str(r) for r in o.get("runs", []))
+    out = ["", f"Outliers: {n} isolated glitch{'' if n == 1 else 'es'} {what} (run {runs})"]
+    items = o.get("items", [])
+    for g in items[:20]:
+        out.append(
+            f"  run {g['run']}, {g['signal']}, t = {g['t']:.6g} s (sample {g['sample']}): "
+            f"{g['size']:+.4g}"
+        )
+    if len(items) > 20:
+        out.append(f"  ... and {len(items) - 20} more (results.json, key outliers)")
+    return out
 
 
 def html_summary(res: Results) -> str:

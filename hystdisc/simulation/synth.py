@@ -14,7 +14,10 @@ Three experiment types (doc/design.rst section 1):
 Measurement model: additive Gaussian noise of standard deviation ``noise`` on the measured
 signal (``theta`` for release/forced, ``torque`` for driven, plus ``theta_noise`` on the
 driven ``theta``), drawn from ``np.random.default_rng(seed)``, then optional encoder
-quantization of ``theta`` (``encoder_counts`` per turn: ``q = 2 pi / counts``).
+quantization of ``theta`` (``encoder_counts`` per turn: ``q = 2 pi / counts``), then
+optional glitches: ``spikes = (N, SIZE)`` adds ``+-SIZE`` to ``N`` single samples of the
+measured signal drawn at random over all runs (a sensor's isolated spikes; their own
+random stream, so the noise is the same with and without them).
 
 A structural effect (``series_compliance``: the beam on a compliant wheel) makes the
 model a state-space system; its runs are simulated by the error-controlled integrator
@@ -97,6 +100,7 @@ SCENARIO_KEYS = (
     "delay",
     "seed",
     "encoder_counts",
+    "spikes",
     "drives",
     "input",
     "output",
@@ -315,6 +319,7 @@ def generate(
     input_spec: Mapping[str, Any] | None = None,
     theta_noise: float = 0.0,
     delay: float = 0.0,
+    spikes: tuple[int, float] | None = None,
 ) -> Dataset:
     """Simulate a model on the rig and measure it with noise and quantization.
 
@@ -354,6 +359,11 @@ def generate(
         ``channel_delay`` effect): the measured torque (driven) or angle (forced) is the
         true one at ``t - delay``. Driven runs are simulated on the motion shifted by
         ``delay`` (exact); forced outputs are shifted by linear interpolation.
+    spikes : (int, float), optional
+        ``(N, SIZE)``: ``N`` isolated glitches of ``+-SIZE`` (random sign) on single samples
+        of the measured signal (``theta``, or the driven ``torque``), at distinct samples
+        drawn uniformly over all runs by ``np.random.default_rng([seed, 1])``. The noise
+        draws do not change with them.
 
     Returns
     -------
@@ -372,6 +382,11 @@ def generate(
     >>> q = 2 * np.pi / 4096
     >>> bool(np.allclose(ds[0].theta / q, np.round(ds[0].theta / q)))
     True
+    >>> clean = generate("dahl", currents=(0, 1), duration=1.0, seed=2)
+    >>> spiky = generate("dahl", currents=(0, 1), duration=1.0, seed=2, spikes=(3, 0.05))
+    >>> d = np.concatenate([s.theta - c.theta for s, c in zip(spiky, clean)])
+    >>> int(np.count_nonzero(d)), np.round(np.abs(d[d != 0]), 12).tolist()
+    (3, [0.05, 0.05, 0.05])
     >>> generate("dahl", duration=-1)
     Traceback (most recent call last):
     ...
@@ -429,6 +444,7 @@ def generate(
         )
     if not kind.has_input and input_spec is not None:
         raise HystdiscError(f"an input is only used by forced experiments, not {exp}; fix: drop it")
+    n_spikes, spike_size = _check_spikes(spikes, n * len(cur) * max(per_current, 1))
     t = np.arange(n) / fs
     rng = np.random.default_rng(int(seed))
     label = repr(mdl) if isinstance(mdl, Model) else "a term model"
@@ -476,6 +492,7 @@ def generate(
             torque = torque + noise * rng.standard_normal(n)
             theta_m = _measure_theta(th, theta_noise, q, rng)
             runs.append(Run(str(k), t.copy(), theta_m, c, torque=torque, theta_dot=w.copy()))
+        _add_spikes([r.torque for r in runs], n_spikes, spike_size, int(seed))
         return Dataset(runs, exp, source)
 
     if theta0 is None:
@@ -516,7 +533,40 @@ def generate(
         theta_m = _measure_theta(np.interp(t - delay, t, theta), noise, q, rng)
         extra = {"input": inputs[k]} if inputs is not None else {}
         runs.append(Run(str(k), t.copy(), theta_m, c, **extra))
+    _add_spikes([r.theta for r in runs], n_spikes, spike_size, int(seed))
     return Dataset(runs, exp, source)
+
+
+def _check_spikes(spikes: Any, total: int) -> tuple[int, float]:
+    """``(N, SIZE)`` checked (N whole and at most the samples, SIZE > 0); (0, 0) for None."""
+    if spikes is None:
+        return 0, 0.0
+    try:
+        count, size = spikes
+    except (TypeError, ValueError):
+        raise HystdiscError(
+            f"spikes = {spikes!r} is not (N, SIZE); fix: give e.g. (6, 0.05)"
+        ) from None
+    if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or count < 0:
+        raise HystdiscError(f"spikes: N = {count!r} is invalid; fix: give a whole number >= 0")
+    if count > total:
+        raise HystdiscError(f"spikes: N = {count} exceeds the {total} samples; fix: give fewer")
+    return int(count), _number(size, "spike size", positive=True)
+
+
+def _add_spikes(signals: list[np.ndarray], count: int, size: float, seed: int) -> None:
+    """Add ``+-size`` to ``count`` distinct samples of ``signals`` (in place), drawn over
+    all runs by their own generator (the noise stream does not change)."""
+    if count == 0:
+        return
+    rng = np.random.default_rng([seed, 1])
+    sizes = np.array([s.size for s in signals])
+    flat = rng.choice(int(sizes.sum()), size=count, replace=False)
+    signs = rng.choice([-1.0, 1.0], size=count)
+    bounds = np.cumsum(sizes)
+    for f, sign in zip(flat, signs, strict=True):
+        k = int(np.searchsorted(bounds, f, side="right"))
+        signals[k][f - (bounds[k] - sizes[k])] += sign * size
 
 
 def _structural(mdl: Model | TermModel, exp: str) -> str | None:
@@ -613,7 +663,8 @@ def load_scenario(path: str | os.PathLike[str]) -> dict[str, Any]:
 
     Keys: ``model`` (family), ``[params]``, ``[effects.<name>]`` tables (an empty table
     takes the effect's defaults), ``currents``, ``experiment``, ``theta0``, ``duration``,
-    ``fs``, ``noise``, ``theta_noise``, ``delay`` (s), ``seed``, ``encoder_counts``, ``drives`` (tables
+    ``fs``, ``noise``, ``theta_noise``, ``delay`` (s), ``seed``, ``encoder_counts``,
+    ``spikes`` (``[N, SIZE]``), ``drives`` (tables
     ``{amplitude, frequency}`` or ``"A@f"`` strings), ``[input]``, ``output`` (CSV file
     name, relative to the scenario file) and the informative ``declared`` (the family a
     user would declare for these data) and ``description``. Unknown keys are an error.
@@ -701,6 +752,13 @@ def normalize_scenario(raw: Mapping[str, Any], source: str = "scenario") -> dict
             sc["theta0"] = (
                 [_number(x, "theta0") for x in v] if isinstance(v, list) else _number(v, "theta0")
             )
+        if "spikes" in raw:
+            v = raw["spikes"]
+            if not (isinstance(v, list) and len(v) == 2):
+                raise _scenario_error(
+                    source, f"spikes = {v!r} is not [N, SIZE]", "write spikes = [6, 0.05]"
+                )
+            sc["spikes"] = (v[0], _number(v[1], "spike size", positive=True))
         for key in ("seed", "encoder_counts"):
             if key in raw:
                 v = raw[key]
@@ -758,6 +816,7 @@ def generate_from_scenario(scenario: Mapping[str, Any]) -> Dataset:
         "drives",
         "theta_noise",
         "delay",
+        "spikes",
     ):
         if scenario.get(key) is not None:
             kw[key] = scenario[key]
