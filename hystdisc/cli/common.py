@@ -104,7 +104,21 @@ def add_discovery_options(p: argparse.ArgumentParser) -> None:
         help=f"families to compare, comma separated (default: {','.join(families)})",
     )
     add_data_options(p)
-    p.add_argument("--seed", type=int, default=0, help="seed of the resampling (default 0)")
+    p.add_argument(
+        "--seed",
+        type=int,
+        default=0,
+        help="seed of the resampling and of the random starts (default 0)",
+    )
+    p.add_argument(
+        "--starts",
+        type=int,
+        default=4,
+        metavar="N",
+        help="starts of each family's output-error fit (default 4: stage 1's, other basins "
+        "of its stage-1 grid, random ones in the admissible box; the others run only when "
+        "the first ends above the noise floor; 1: stage 1's alone)",
+    )
     p.add_argument("--ensemble", action="store_true", help="inclusion probabilities by bagging")
     p.add_argument(
         "--no-heldout",
@@ -156,6 +170,7 @@ def discovery_options(args: argparse.Namespace) -> dict:
         "input_hold": args.input_hold,
         "single_current": args.single_current,
         "staged": getattr(args, "staged", False),
+        "n_starts": getattr(args, "starts", 4),
     }
 
 
