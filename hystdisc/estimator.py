@@ -101,6 +101,10 @@ SELECTION_TIE_BIC = 2.0
 SYSTEM_START_NFEV = 8
 #: Other basins of a term family's stage-1 grid among its output-error starts.
 GRID_BASINS = 2
+#: A family is fitted from more starts when its first fit is above the noise floor and
+#: within this factor of the best family's RMS (further off, other starts would not make
+#: it the selected one).
+COMPETITIVE_RMS = 3.0
 #: Families whose BIC lies within this of the selected one "fit equally well".
 EQUAL_FIT_BIC = 6.0
 #: A family whose held-out RMS exceeds the best family's by more than this factor is not
@@ -651,20 +655,32 @@ class Discovery(BaseEstimator):
                 return OutputErrorFitter(fd, tpar, max_nfev=self.max_nfev).fit(heldout=False)
             name = fams[k]
             say(f"stage 2: output-error fit of {name} ({k + 1}/{len(fams)})")
-            fixed = {p: 0.0 for p in FAMILIES[name].current_params} if self.single_current_ else {}
+            start, norm = _normalization(name, self._family_start(eq, name))
+            par = FamilyParametrization(
+                name, eq.experiment, start, fixed=family_fixed(name), normalization=norm
+            )
+            return OutputErrorFitter(fd, par, max_nfev=self.max_nfev).fit(heldout=False)
+
+        def family_fixed(name):
+            return {p: 0.0 for p in FAMILIES[name].current_params} if self.single_current_ else {}
+
+        def more_starts(name):
+            """The family from its other starts (its stage-1 fit is the first)."""
             pars = []
             for label, start in self._family_starts(eq, name):
                 start, norm = _normalization(name, start)
-                pars.append(
-                    (
-                        label,
-                        FamilyParametrization(
-                            name, eq.experiment, start, fixed=fixed, normalization=norm
-                        ),
-                    )
+                par = FamilyParametrization(
+                    name, eq.experiment, start, fixed=family_fixed(name), normalization=norm
                 )
+                pars.append((label, par))
             return best_of_starts(
-                fd, pars, self.max_nfev, say=say, name=name, good_rms=NOISE_RATIO * fd.noise_std
+                fd,
+                pars,
+                self.max_nfev,
+                say=say,
+                name=name,
+                good_rms=NOISE_RATIO * fd.noise_std,
+                first=self.family_fits_[name],
             )
 
         def with_heldout(name):
@@ -688,6 +704,25 @@ class Discovery(BaseEstimator):
 
         fits = self._map(family_fit, list(range(len(fams) + (0 if same else 1))))
         self.family_fits_: dict[str, OEFit] = dict(zip(fams, fits, strict=False))
+        # a family still above the noise and near the best one is fitted from more starts
+        top = min(f.rms for f in self.family_fits_.values())
+        good = NOISE_RATIO * fd.noise_std
+        more = [
+            n
+            for n, f in self.family_fits_.items()
+            if f.rms > good and f.rms <= COMPETITIVE_RMS * max(top, good)
+        ]
+        if self.n_starts > 1:
+            for n, f in self.family_fits_.items():
+                if n not in more and f.rms > good:
+                    f.notes.append(
+                        f"fitted from stage 1's start only: its RMS is {f.rms / top:.3g} "
+                        f"times the best family's (more starts are tried within "
+                        f"{COMPETITIVE_RMS:g} times it)"
+                    )
+            if more:
+                refits = self._map(more_starts, more)
+                self.family_fits_.update(zip(more, refits, strict=True))
         if len(fams) > 1:  # no family ends worse than a model it contains
             self.family_fits_ = nesting_pass(fd, self.family_fits_, self.max_nfev, say)
         self.family_fits_ = dict(zip(fams, self._map(with_heldout, fams), strict=True))

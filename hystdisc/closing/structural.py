@@ -62,6 +62,10 @@ DAMPING_RATIOS = (0.05, 0.3)
 PEAK_ABOVE = 1.3
 #: Output-error fits per structural refit (from the best screened starts).
 N_STARTS = 3
+#: The same for a driven mount (each fit integrates a stiff state-space model on every
+#: sample; on the synthetic mount the three best starts reached one optimum, k_w within
+#: 0.1 % of each other).
+N_STARTS_MOUNT = 1
 #: Driven: mount stiffnesses of the start grid, in multiples of the damper's own.
 MOUNT_STIFFNESS_RATIOS = (2.0, 5.0, 15.0, 50.0)
 #: Driven: mount natural frequencies of the start grid, in multiples of the top drive
@@ -315,6 +319,8 @@ def refit_structural(
     key = (eff.significance or tuple(p.name for p in eff.params))[0]
     fits, rows = [], []
     by = "stiffness" if data.exp.motion_imposed else "frequency"
+    if data.exp.motion_imposed:
+        n_starts = min(n_starts, N_STARTS_MOUNT)
     for st in distinct_starts(starts, n_starts, by=by):
         par = fit.par.like(st, (*fit.par.effects, name))
         with np.errstate(all="ignore"):

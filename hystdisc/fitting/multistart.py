@@ -66,6 +66,7 @@ def best_of_starts(
     say: Say = _quiet,
     name: str = "",
     good_rms: float | None = None,
+    first: OEFit | None = None,
 ) -> OEFit:
     """The best fit of several starts (see the module docstring).
 
@@ -93,6 +94,9 @@ def best_of_starts(
         The family, for the messages.
     good_rms : float, optional
         The RMS at which a fit is at the noise floor (see above).
+    first : OEFit, optional
+        The first start's fit to convergence, when it is already made (it is then not
+        refitted, and is the lead whatever ``good_rms``).
 
     Returns
     -------
@@ -105,10 +109,11 @@ def best_of_starts(
     if len(starts) == 1:
         return OutputErrorFitter(data, starts[0][1], max_nfev=max_nfev).fit(heldout=False)
     labels = [label for label, _ in starts]
-    lead = None
-    if good_rms is not None:
+    lead = first
+    if lead is None and good_rms is not None:
         with np.errstate(all="ignore"):
             lead = OutputErrorFitter(data, starts[0][1], max_nfev=max_nfev).fit(heldout=False)
+    if lead is not None and good_rms is not None:
         if lead.rms <= good_rms:
             lead.notes.append(
                 f"the first of {len(starts)} starts ({labels[0]}) reached the noise floor "
