@@ -705,7 +705,7 @@ class Discovery(BaseEstimator):
         fits = self._map(family_fit, list(range(len(fams) + (0 if same else 1))))
         self.family_fits_: dict[str, OEFit] = dict(zip(fams, fits, strict=False))
         # a family still above the noise and near the best one is fitted from more starts
-        top = min(f.rms for f in self.family_fits_.values())
+        top = min((f.rms for f in self.family_fits_.values()), default=np.inf)
         good = NOISE_RATIO * fd.noise_std
         more = [
             n
