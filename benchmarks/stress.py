@@ -520,9 +520,9 @@ def main(argv: list[str] | None = None) -> int:
         if f not in BOUNDS:
             ap.error(f"unknown family {f}; use {', '.join(BOUNDS)}")
     work = Path(args.work or tempfile.mkdtemp(prefix="hystdisc_stress_"))
-    cases = []
-    for f in fams:
-        for k in range(args.first_set, args.first_set + args.sets):
+    cases = []  # set by set, so that a partial run covers every family and condition
+    for k in range(args.first_set, args.first_set + args.sets):
+        for f in fams:
             p, rej = sample_set(f, k, args.duration)
             cases += [Case(f, k, c, p, rej, args.duration) for c in conds]
     print(f"{len(cases)} cases; work folder {work}", flush=True)
@@ -542,7 +542,7 @@ def main(argv: list[str] | None = None) -> int:
 
     def save() -> None:
         meta["wall_s"] = time.time() - t0
-        order = {c.name: i for i, c in enumerate(cases)}
+        order = {c.name: (FAMILIES.index(c.family), c.index, i) for i, c in enumerate(cases)}
         records.sort(key=lambda r: order[r["case"]])
         out.parent.mkdir(parents=True, exist_ok=True)
         jpath.write_text(json.dumps({"meta": meta, "cases": records}, indent=1, default=str))
