@@ -478,21 +478,27 @@ class Discovery(BaseEstimator):
         )
         return eq, fd, glitches
 
+    def _shape0(self, name: str) -> np.ndarray | None:
+        """The stage-1 shape constants of ``name``'s shape (None before stage 1)."""
+        shape = FAMILY_SHAPE[name]
+        return self.stage1_[shape].s if shape in getattr(self, "stage1_", {}) else None
+
     def _family_start(self, eq: EqData, name: str) -> dict[str, float]:
         # the stage-1 search of this shape is the natural start (no second grid search)
-        shape = FAMILY_SHAPE[name]
-        s0 = self.stage1_[shape].s if shape in getattr(self, "stage1_", {}) else None
-        p, _ = family_start(eq, name, s0=s0, one_level=self.single_current_)
+        p, _ = family_start(eq, name, s0=self._shape0(name), one_level=self.single_current_)
         return p
 
-    def _family_starts(self, eq: EqData, name: str) -> list[tuple[str, dict[str, float]]]:
-        """The ``n_starts`` starts of a term family: stage 1's, other basins of its
-        shape's grid (up to :data:`GRID_BASINS`), random perturbations of stage 1's."""
-        shape = FAMILY_SHAPE[name]
-        s0 = self.stage1_[shape].s if shape in getattr(self, "stage1_", {}) else None
+    def _family_starts(
+        self, eq: EqData, name: str, first: dict[str, float] | None = None
+    ) -> list[tuple[str, dict[str, float]]]:
+        """The ``n_starts`` starts of a term family: stage 1's (``first`` when already
+        made), other basins of its shape's grid (up to :data:`GRID_BASINS`), random
+        perturbations of stage 1's."""
         n = max(int(self.n_starts), 1)
         basins = min(GRID_BASINS, n - 1)
-        starts = family_starts(eq, name, basins, s0=s0, one_level=self.single_current_)
+        starts = family_starts(
+            eq, name, basins, s0=self._shape0(name), one_level=self.single_current_, first=first
+        )
         extra = n - len(starts)
         if extra > 0:
             starts += random_starts(name, starts[0][1], extra, seed=self.seed)
@@ -667,7 +673,8 @@ class Discovery(BaseEstimator):
         def more_starts(name):
             """The family from its other starts (its stage-1 fit is the first)."""
             pars = []
-            for label, start in self._family_starts(eq, name):
+            first = self.family_fits_[name]
+            for label, start in self._family_starts(eq, name, first.par.params(first.par.x0)):
                 start, norm = _normalization(name, start)
                 par = FamilyParametrization(
                     name, eq.experiment, start, fixed=family_fixed(name), normalization=norm

@@ -99,9 +99,10 @@ def family_starts(
     basins: int = 2,
     s0: np.ndarray | None = None,
     one_level: bool = False,
+    first: dict[str, float] | None = None,
 ) -> list[tuple[str, dict[str, float]]]:
     """Labelled stage-1 starts of a family's output-error fit: the start from the stage-1
-    shape ``s0`` (:func:`family_start`), then one from each of up to ``basins`` other
+    shape ``s0`` (:func:`family_start`; ``first`` when the caller already has it), then one from each of up to ``basins`` other
     basins of the shape's grid (:func:`~hystdisc.discovery.varpro.grid_minima`, at least 1
     apart from ``s0`` in the shape's coordinates).
 
@@ -114,8 +115,9 @@ def family_starts(
     >>> [label for label, _ in family_starts(eq, "dahl", basins=2, one_level=True)]
     ['stage 1', 'stage-1 basin 2', 'stage-1 basin 3']
     """
-    first, _ = family_start(eq, family, s0=s0, one_level=one_level)
-    out = [("stage 1", first)]
+    if first is None:
+        first, _ = family_start(eq, family, s0=s0, one_level=one_level)
+    out = [("stage 1", dict(first))]
     if basins <= 0:
         return out
     fam = get_family(family)
