@@ -449,6 +449,8 @@ class Discovery(BaseEstimator):
         if dataset.filter is not None:  # the fit sees the damper through the rig's filter
             windows = filter_windows(dataset.filter, runs, dataset.source)
             apply_filter(fd, windows, dataset.filter["channels"], [r.theta for r in runs])
+        if self.noise_.method == "quantization" and self.noise_.output_quantization:
+            fd.quantum = float(self.noise_.output_quantization.step)
         given = [r.condition for r in runs]
         if all(c is not None for c in given):
             fd.conditions = [str(c) for c in given]

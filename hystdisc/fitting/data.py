@@ -54,6 +54,11 @@ class FitData:
     #: each run's causal moving-average window (measured samples) of the recorded output,
     #: applied to the simulated output too (None: not filtered; see fitting/measurement.py)
     filter_windows: list[int] | None = None
+    #: the lattice step of the measured output when its noise is quantization (an encoder
+    #: without noise above its floor); 0: the noise is independent from sample to sample.
+    #: Quantization error is a fixed sawtooth of the true output, correlated wherever the
+    #: output dwells within a step, and the fit's intervals account for it
+    quantum: float = 0.0
     _bulk: FitData | None = field(default=None, init=False, repr=False, compare=False)
     _bulk_done: bool = field(default=False, init=False, repr=False, compare=False)
 
@@ -138,6 +143,7 @@ class FitData:
             [q * s for q, s in zip(qs, self.run_steps(), strict=True)],
             self.conditions,
             self.filter_windows,
+            self.quantum,
         )
 
     def subset(self, idx: list[int]) -> FitData:
@@ -159,6 +165,7 @@ class FitData:
             None if self.steps is None else pick(self.steps),
             None if self.conditions is None else pick(self.conditions),
             None if self.filter_windows is None else pick(self.filter_windows),
+            self.quantum,
         )
 
     def folds(self) -> list[list[int]]:

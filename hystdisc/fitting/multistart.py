@@ -49,6 +49,8 @@ EXPONENT_STEP = 1.0
 #: A mapped optimum refits a family when it fits better than the family's optimum by
 #: more than this relative RSS.
 NESTING_RTOL = 1e-3
+#: At most this many nesting passes (a pass that changes nothing ends them).
+NESTING_PASSES = 3
 
 Say = Callable[[str], None]
 
@@ -202,30 +204,39 @@ def random_starts(
     return out
 
 
-def mapped_start(family: str, fit: OEFit) -> dict[str, float] | None:
-    """Another family's optimum in ``family``'s parameters, through the term form (None
-    when the other fit is a state-space model or the mapping fails or leaves the bounds
-    with non-finite values)."""
+def mapped_starts(family: str, fit: OEFit) -> list[dict[str, float]]:
+    """Another family's optimum in ``family``'s parameters, through the term form
+    (:meth:`Family.term_starts`: one start, or several when the family contains the
+    other model only approximately); empty when either is a state-space model or the
+    mapping fails. Values are clipped to the bounds; non-finite readings are dropped."""
     fam = get_family(family)
     if fam.is_system or fit.is_system:
-        return None
-    tm = fit.term_part
+        return []
     try:
         with np.errstate(all="ignore"):
-            p = fam.from_terms(tm)
+            readings = fam.term_starts(fit.term_part)
     except (KeyError, ValueError, ZeroDivisionError, NotImplementedError):
-        return None
-    p = {k: float(v) for k, v in p.items()}
-    for extra in ("k_s", "J"):
-        if extra in fit.params:
-            p.setdefault(extra, float(fit.params[extra]))
-    if not all(np.isfinite(v) for v in p.values()):
-        return None
+        return []
     specs = {s.name: s for s in (*fam.params, *RIG_PARAMS)}
-    for k, v in p.items():
-        if k in specs:
-            p[k] = float(np.clip(v, specs[k].lower, specs[k].upper))
-    return p
+    out = []
+    for reading in readings:
+        p = {k: float(v) for k, v in reading.items()}
+        for extra in ("k_s", "J"):
+            if extra in fit.params:
+                p.setdefault(extra, float(fit.params[extra]))
+        if not all(np.isfinite(v) for v in p.values()):
+            continue
+        for k, v in p.items():
+            if k in specs:
+                p[k] = float(np.clip(v, specs[k].lower, specs[k].upper))
+        out.append(p)
+    return out
+
+
+def mapped_start(family: str, fit: OEFit) -> dict[str, float] | None:
+    """The first of :func:`mapped_starts` (None when there is none)."""
+    starts = mapped_starts(family, fit)
+    return starts[0] if starts else None
 
 
 def start_rss(data: FitData, par: Parametrization, nuisance: np.ndarray | None = None) -> float:
@@ -247,39 +258,55 @@ def nesting_pass(
     fits: dict[str, OEFit],
     max_nfev: int,
     say: Say = _quiet,
+    passes: int = NESTING_PASSES,
 ) -> dict[str, OEFit]:
     """Refit each family from another family's optimum when that optimum, mapped into it,
-    fits better than its own (see the module docstring). Returns the updated fits (the
-    same objects where nothing changed); each refit carries a note."""
+    fits better than its own (see the module docstring); repeated while a pass changes a
+    fit (at most ``passes`` times: a refitted family can lift one that contains it).
+    Returns the updated fits (the same objects where nothing changed); each refit carries
+    a note."""
     out = dict(fits)
-    for name, fit in fits.items():
-        if fit.is_system:
+    for _ in range(passes):
+        changed = False
+        for name in list(out):
+            new = _nested_refit(data, out, name, max_nfev, say)
+            if new is not None:
+                out[name], changed = new, True
+        if not changed:
+            break
+    return out
+
+
+def _nested_refit(
+    data: FitData, fits: dict[str, OEFit], name: str, max_nfev: int, say: Say
+) -> OEFit | None:
+    """``name`` refitted from the best mapped optimum of the others, or None."""
+    fit = fits[name]
+    if fit.is_system:
+        return None
+    best_rss, source = fit.rss, None
+    for other, ofit in fits.items():
+        if other == name or not ofit.rss < fit.rss * (1 - NESTING_RTOL):
             continue
-        best_rss, source = fit.rss, None
-        for other, ofit in fits.items():
-            if other == name or not ofit.rss < fit.rss * (1 - NESTING_RTOL):
-                continue
-            p = mapped_start(name, ofit)
-            if p is None:
-                continue
+        for p in mapped_starts(name, ofit):
             par = fit.par.like(p, fit.par.effects)
             rss = start_rss(data, par, ofit.nuisance)
             if rss < best_rss * (1 - NESTING_RTOL):
                 best_rss, source = rss, (other, par)
-        if source is None:
-            continue
-        other, par = source
-        say(f"stage 2: {name} refitted from the optimum of {other} (it fits better there)")
-        with np.errstate(all="ignore"):
-            new = OutputErrorFitter(data, par, max_nfev=max_nfev).fit(heldout=False)
-        if new.rss < fit.rss:
-            new.notes.extend(fit.notes)
-            new.notes.append(
-                f"refitted from the optimum of {other}, which it contains and which fitted "
-                f"better (RMS {fit.rms:.4g} -> {new.rms:.4g}): a family never ends worse "
-                "than a model it contains"
-            )
-            new.extra.update({k: v for k, v in fit.extra.items() if k not in new.extra})
-            new.extra["nested_from"] = other
-            out[name] = new
-    return out
+    if source is None:
+        return None
+    other, par = source
+    say(f"stage 2: {name} refitted from the optimum of {other} (it fits better there)")
+    with np.errstate(all="ignore"):
+        new = OutputErrorFitter(data, par, max_nfev=max_nfev).fit(heldout=False)
+    if not new.rss < fit.rss * (1 - NESTING_RTOL):
+        return None
+    new.notes.extend(n for n in fit.notes if not n.startswith("refitted from the optimum"))
+    new.notes.append(
+        f"refitted from the optimum of {other}, mapped into it, which fitted "
+        f"better (RMS {fit.rms:.4g} -> {new.rms:.4g}): a family never ends worse "
+        "than a model it contains"
+    )
+    new.extra.update({k: v for k, v in fit.extra.items() if k not in new.extra})
+    new.extra["nested_from"] = other
+    return new

@@ -27,6 +27,7 @@ from hystdisc.errors import HystdiscError
 from hystdisc.fitting.data import FitData
 from hystdisc.fitting.lm import levenberg_marquardt
 from hystdisc.fitting.parametrization import Parametrization, SystemParametrization
+from hystdisc.fitting.quantized import quantization_information
 from hystdisc.models import TermModel
 from hystdisc.stats import bic as _bic
 
@@ -195,6 +196,10 @@ class OutputErrorFitter:
         return np.concatenate(
             [(p - self.data.y[r])[self.masks[r]] for p, r in zip(preds, runs, strict=True)]
         )
+
+    def _measured(self) -> np.ndarray:
+        """The measured output at the residual's rows (in its order)."""
+        return np.concatenate([y[m] for y, m in zip(self.data.y, self.masks, strict=True)])
 
     def residuals(self, v, work_out: list | None = None):
         x, nu = self._split(v)
@@ -397,6 +402,10 @@ class OutputErrorFitter:
         Sinv = np.where(S > tol, 1.0 / np.where(S > tol, S, 1.0), 0.0)
         cov_s = (Vt.T * Sinv**2) @ Vt
         cov = s2 * cov_s / np.outer(scale, scale)
+        if self.data.quantum > 0:  # quantization error: correlated, a sandwich
+            ainv = cov_s / np.outer(scale, scale)
+            B = quantization_information(Jm, self._measured() + res, self.data.quantum)
+            cov = s2 * ainv @ B @ ainv
         covx = cov[: self.npar, : self.npar]
         # propagate to reported (incl. derived) parameters
         p = self.par.params(x)

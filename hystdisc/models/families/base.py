@@ -173,6 +173,13 @@ class Family:
     def from_terms(self, tm: TermModel) -> dict[str, float]:  # pragma: no cover - abstract
         raise NotImplementedError
 
+    def term_starts(self, tm: TermModel) -> list[dict[str, float]]:
+        """Parameter sets of this family near another model's term form ``tm``: starts for
+        a fit from that model's optimum (a family that only approximately contains it may
+        offer several readings). The default is the one exact reading,
+        :meth:`from_terms`."""
+        return [self.from_terms(tm)]
+
     def equations(self) -> str:  # pragma: no cover - abstract
         raise NotImplementedError
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping
 
 import numpy as np
@@ -40,6 +41,9 @@ class BoucWen(Family):
     _gamma_term = "|theta_dot|*z*|z|^n"
     #: Degree of z in the gamma term beyond |z|^n (seed form: z|z|^n, one more).
     gamma_extra_degree = 1
+    #: The exponent at which the gamma term is Dahl's ``|theta_dot|*z`` (seed form: n -> 0,
+    #: its lower bound).
+    dahl_exponent = 1e-4
 
     def to_terms(self, p):
         return TermModel(
@@ -70,6 +74,12 @@ class BoucWen(Family):
         beta = -tm.hysteresis.get("theta_dot*|z|^n", 0.0)
         gamma = -tm.hysteresis.get(self._gamma_term, 0.0)
         n = tm.n
+        dahl = -tm.hysteresis.get("|theta_dot|*z", 0.0)
+        if dahl and not gamma and not beta:
+            # a Dahl or LuGre state (dz = delta w - g |w| z) is this family's gamma term
+            # at the exponent where |z|-powers vanish: n = 0 (seed form, its lower bound)
+            # or n = 1 (standard form)
+            gamma, n = dahl, self.dahl_exponent
         g = tm.torque.get
         s = self.z_sat(delta, beta, gamma, n)
         if not np.isfinite(s) or s <= 0:
@@ -85,6 +95,34 @@ class BoucWen(Family):
             "delta": delta / s,
             "n": n,
         }
+
+    def term_starts(self, tm: TermModel) -> list[dict[str, float]]:
+        """Readings of ``tm`` in this form; the other Bouc-Wen form's gamma term
+        (``|w| z |z|^(n-1)`` against the seed's ``|w| z |z|^n``) is this form's at an
+        exponent one apart, which moves its beta term's exponent too: two starts, one
+        keeping the gamma term exact (``n`` shifted by one) and one keeping the beta term
+        exact (``n`` kept).
+
+        Examples
+        --------
+        >>> std = BOUC_WEN_STD.to_terms({"alpha_1": 1, "alpha_2": 0, "c_1": 0.5, "c_2": 0,
+        ...                              "beta": 5, "gamma": 15, "delta": 20, "n": 2})
+        >>> [round(s["n"], 3) for s in BOUC_WEN.term_starts(std)]
+        [1.0, 2.0]
+        """
+        other = next(
+            (k for k in ("|theta_dot|*z*|z|^n", "|theta_dot|*z*|z|^(n-1)") if k != self._gamma_term),
+        )
+        if self._gamma_term in tm.hysteresis or not tm.hysteresis.get(other):
+            return [self.from_terms(tm)]
+        hyst = {k: v for k, v in tm.hysteresis.items() if k != other}
+        hyst[self._gamma_term] = tm.hysteresis[other]
+        shift = 1.0 if self.gamma_extra_degree == 0 else -1.0  # std reads seed: n + 1
+        lower = next(p.lower for p in self.params if p.name == "n")
+        starts = []
+        for n in (max(tm.n + shift, lower), tm.n):
+            starts.append(self.from_terms(dataclasses.replace(tm, hysteresis=hyst, n=n)))
+        return starts
 
     def _scaled_gamma(self, gamma: float, s: float, n: float) -> float:
         """The gamma of the normalized state ``zn = z / s`` (seed form: ``gamma s^n``)."""
@@ -106,6 +144,7 @@ class BoucWenStd(BoucWen):
     hysteresis_terms = ("theta_dot", "theta_dot*|z|^n", "|theta_dot|*z*|z|^(n-1)")
     _gamma_term = "|theta_dot|*z*|z|^(n-1)"
     gamma_extra_degree = 0
+    dahl_exponent = 1.0
 
     def _scaled_gamma(self, gamma: float, s: float, n: float) -> float:
         # standard form: both shape terms scale as s^(n-1) after z = s*zn:
