@@ -101,12 +101,14 @@ def fitted_parametrization(results, family: str | None = None):
 
 def fit_data(experiment: str, specs: list[RunSpec], noise_std: float) -> FitData:
     """The runs ``specs`` as the output-error fit takes them (the outputs left at zero:
-    only the sensitivities are asked for). A driven run's first sweep is left out of the
-    residual, as the fit does (the unknown initial state)."""
+    only the sensitivities are asked for). A driven run's samples before the motion has swept its
+    range once are left out of the residual, as the fit does (the unknown initial z)."""
     t, y, th, w, u, m = [], [], [], [], [], []
     for s in specs:
         ts, x, v = s.motion()
-        mask = ts >= ts[0] + s.first_period()
+        # as the fit: skip until the motion has swept its range once
+        travel = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(x)))])
+        mask = travel >= np.ptp(x)
         if mask.sum() < 20:
             mask[:] = True
         if s.kind == "release":

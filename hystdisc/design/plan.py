@@ -44,7 +44,7 @@ def _sampling(results) -> tuple[float, float]:
             durations.append(d)
     if not rates:
         return 1000.0, 3.0
-    return float(np.median(rates)), float(np.median(durations))
+    return float(f"{np.median(rates):.6g}"), float(np.median(durations))
 
 
 def _sigma(results, family: str) -> float:

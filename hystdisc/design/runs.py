@@ -99,15 +99,6 @@ class RunSpec:
         peak = float(np.max(np.abs(x))) or 1.0
         return t, self.amplitude * x / peak, self.amplitude * v / peak
 
-    def first_period(self) -> float:
-        """Time before the driven motion has swept its range once (the unknown initial z
-        is forgotten after it), s; 0 for a release."""
-        if self.kind == "sine":
-            return 1.0 / self.frequency
-        if self.kind == "multisine":
-            return 1.0 / self.band[0]
-        return 0.0
-
 
 def recorded_runs(envelope: dict, driven: bool, fs: float) -> list[RunSpec]:
     """The runs the fit saw, rebuilt from the training envelope of ``results.json``.
