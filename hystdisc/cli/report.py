@@ -84,7 +84,8 @@ def run(args: argparse.Namespace) -> int:
     if args.design is not None:
         from hystdisc.design import design
 
-        say("report: experiment design")
+        if say is not None:
+            say("report: experiment design")
         try:
             plan = design(disc.results_, budget=args.design)
         except HystdiscError as exc:  # a forced test, a model diverging on a candidate

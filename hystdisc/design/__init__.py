@@ -9,7 +9,16 @@ the runs that most shrink the widest 95 % interval (:class:`DesignResult`). The 
 """
 
 from hystdisc.design.base import DesignResult
-from hystdisc.design.plan import design
+from hystdisc.design.plan import Information, design, expected_widths, information_in_hand
 from hystdisc.design.runs import RunSpec, candidate_runs, recorded_runs
 
-__all__ = ["DesignResult", "RunSpec", "candidate_runs", "design", "recorded_runs"]
+__all__ = [
+    "DesignResult",
+    "Information",
+    "RunSpec",
+    "candidate_runs",
+    "design",
+    "expected_widths",
+    "information_in_hand",
+    "recorded_runs",
+]

@@ -4,7 +4,7 @@ Examples
 --------
 >>> from hystdisc.design.runs import RunSpec
 >>> d = DesignResult(family="dahl", experiment="release", sigma=0.001,
-...     names=["k_x"], values={"k_x": 0.8}, widths_before={"k_x": 0.08},
+...     names=["k_x"], judged=["k_x"], values={"k_x": 0.8}, widths_before={"k_x": 0.08},
 ...     predicted_before={"k_x": 0.08}, widths_after={"k_x": 0.04},
 ...     runs=[RunSpec("release", 1.0, 0.3, duration=3.0, fs=500.0)], widest_steps=[0.05])
 >>> d.widest_before, d.widest_after, d.predicted_factor
@@ -39,6 +39,8 @@ class DesignResult:
         Residual standard deviation the information is scaled by (the fit's RMS).
     names : list of str
         The reported parameters (free and derived), in the fit's order.
+    judged : list of str
+        Those whose relative width counts for "widest" (not zero, not held by a bound).
     values : dict of str to float
         Their fitted values.
     widths_before : dict of str to float
@@ -66,6 +68,7 @@ class DesignResult:
     experiment: str
     sigma: float
     names: list[str]
+    judged: list[str]
     values: dict[str, float]
     widths_before: dict[str, float]
     predicted_before: dict[str, float]
@@ -90,13 +93,13 @@ class DesignResult:
     def widest_before(self) -> str:
         """The parameter with the widest relative interval now."""
         rel = self.relative_before
-        return max(rel, key=rel.get)
+        return max(self.judged, key=rel.get)
 
     @property
     def widest_after(self) -> str:
         """The parameter with the widest relative interval expected after the runs."""
         rel = self.relative_after
-        return max(rel, key=rel.get)
+        return max(self.judged, key=rel.get)
 
     @property
     def predicted_factor(self) -> float:
@@ -125,6 +128,7 @@ class DesignResult:
             "runs": [run(s) for s in self.runs],
             "widest_steps": list(self.widest_steps),
             "predicted_factor": self.predicted_factor,
+            "judged": list(self.judged),
             "parameters": {
                 k: {
                     "value": self.values[k],
@@ -146,15 +150,17 @@ class DesignResult:
         """Header and rows of the interval table (now, rebuilt, expected after)."""
         header = ["parameter", "value", "95 % width now", "rebuilt", "expected after", "shrink"]
         rows = []
+        rb, ra = self.relative_before, self.relative_after
         for k in self.names:
             b, a = self.widths_before[k], self.widths_after[k]
+            judged = k in self.judged
             rows.append(
                 [
                     k,
                     f"{self.values[k]:.4g}",
-                    f"{b:.3g} ({100 * self.relative_before[k]:.3g} %)",
+                    f"{b:.3g} ({100 * rb[k]:.3g} %)" if judged else f"{b:.3g} (not judged)",
                     f"{self.predicted_before[k]:.3g}",
-                    f"{a:.3g} ({100 * self.relative_after[k]:.3g} %)",
+                    f"{a:.3g} ({100 * ra[k]:.3g} %)" if judged else f"{a:.3g}",
                     f"{a / b:.2f}" if b > 0 else "-",
                 ]
             )

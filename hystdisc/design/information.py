@@ -142,12 +142,8 @@ def run_information(par, experiment: str, specs: list[RunSpec], sigma: float) ->
     -------
     ndarray
         Shape ``(len(specs), k, k)`` with ``k = len(par.names)``; a run's initial state
-        is a nuisance of that run (the Schur complement).
-
-    Raises
-    ------
-    HystdiscError
-        When the model diverges on a run.
+        is a nuisance of that run (the Schur complement). A run the model diverges on
+        gets NaN.
     """
     if not specs:
         return np.zeros((0, len(par.names), len(par.names)))
@@ -159,18 +155,17 @@ def run_information(par, experiment: str, specs: list[RunSpec], sigma: float) ->
     runs = list(range(data.n_runs))
     nus = list(nu.reshape(len(runs), fitter.nnu))
     par.simulate(data, [par.model(par.x0)] * len(runs), runs, nus, status_out=status)
-    bad = [specs[r].label() for r in runs if status[r]]
-    if bad:
-        raise HystdiscError(
-            f"the fitted model diverges on {bad[0]}; fix: restrict the candidate runs"
-        )
-    J = fitter.jacobian(v) / sigma
+    with np.errstate(all="ignore"):
+        J = fitter.jacobian(v) / sigma
     k, nn = fitter.npar, fitter.nnu
     out = np.empty((len(specs), k, k))
     for r in runs:
         rows = slice(fitter.row_offsets[r], fitter.row_offsets[r + 1])
         cols = list(range(k)) + list(range(k + r * nn, k + (r + 1) * nn))
         Jr = J[rows][:, cols]
+        if status[r] or not np.all(np.isfinite(Jr)):
+            out[r] = np.nan
+            continue
         out[r] = schur(Jr.T @ Jr, k)
     return out
 

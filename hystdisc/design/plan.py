@@ -14,6 +14,8 @@ ratio.
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+
 import numpy as np
 
 from hystdisc.design.base import DesignResult
@@ -31,6 +33,8 @@ from hystdisc.errors import HystdiscError
 SEPARATION_TOP = 5
 #: Rebuilt intervals this far from the fit's (either way) earn a note.
 REBUILD_TOLERANCE = 2.0
+#: A free parameter this close to a bound (relative) is held by it.
+BOUND_TOL = 1e-9
 
 
 def _sampling(results) -> tuple[float, float]:
@@ -78,6 +82,155 @@ def _outputs(par, experiment: str, specs: list[RunSpec], sigma: float):
     return par.simulate(data, [par.model(par.x0)] * len(specs), runs, nus), data.mask
 
 
+@dataclass
+class Information:
+    """What a design needs of a fit: its model, the information in hand, the scales.
+
+    Built by :func:`information_in_hand`; :meth:`widths` gives the expected 95 % widths
+    after any extra information.
+
+    Attributes
+    ----------
+    results : Results
+        The fit.
+    par : Parametrization
+        Its model (:func:`~hystdisc.design.information.fitted_parametrization`).
+    names : list of str
+        The reported parameters (free and derived; fixed ones left out).
+    values : dict of str to float
+        Their fitted values.
+    sigma : float
+        Residual standard deviation the information is scaled by.
+    fs, duration : float
+        Sampling rate and (median) duration of the training runs.
+    F0 : ndarray
+        Information of the runs rebuilt from the training envelope.
+    G : ndarray
+        ``d p / d x`` of the reported parameters by the free ones.
+    rebuilt, before : dict of str to float
+        The 95 % widths from ``F0``, and the fit's own (``results.json``).
+    judged : list of str
+        The parameters whose relative width counts: not zero, and not held by a bound in
+        the fit (such an interval says nothing about the value).
+    notes : list of str
+        Remarks (a rebuild far from the fit's intervals).
+    """
+
+    results: object
+    par: object
+    names: list[str]
+    values: dict[str, float]
+    sigma: float
+    fs: float
+    duration: float
+    F0: np.ndarray
+    G: np.ndarray
+    rebuilt: dict[str, float]
+    before: dict[str, float]
+    judged: list[str]
+    notes: list[str] = field(default_factory=list)
+
+    def widths(self, F: np.ndarray) -> np.ndarray:
+        """Expected 95 % widths for information ``F``: the fit's widths times the shrink
+        ``F`` predicts against ``F0`` (what the rebuild misses cancels in the ratio)."""
+        scale = np.array(
+            [self.before[k] / self.rebuilt[k] if self.rebuilt[k] > 0 else 1.0 for k in self.names]
+        )
+        return scale * interval_widths(F, self.G)
+
+    def widest(self, F: np.ndarray) -> float:
+        """The widest expected 95 % interval relative to its value, for information ``F``."""
+        vals = np.array([abs(self.values[k]) for k in self.names])
+        judged = np.array([k in self.judged for k in self.names])
+        return float(np.max(self.widths(F)[judged] / vals[judged]))
+
+    def of(self, specs: list[RunSpec]) -> np.ndarray:
+        """Each run's information, ``(len(specs), k, k)`` (NaN: the model diverges)."""
+        return run_information(self.par, self.results.experiment, specs, self.sigma)
+
+
+def information_in_hand(results) -> Information:
+    """The fit's model and the information of the runs it saw (rebuilt from its envelope).
+
+    Raises
+    ------
+    HystdiscError
+        For a file without a training envelope, a forced experiment, or a model that
+        diverges on a rebuilt run.
+    """
+    if not results.envelope or not results.envelope.get("runs"):
+        raise HystdiscError(
+            "results: no training envelope (a file written before schema 3); fix: rerun "
+            "hystdisc discover"
+        )
+    family = results.family
+    if family not in results.families:
+        raise HystdiscError("results: no selected family; fix: rerun hystdisc discover")
+    driven = experiment_kind(results.experiment)
+    par, values = fitted_parametrization(results)
+    sigma = _sigma(results, family)
+    fs, duration = _sampling(results)
+    F0 = run_information(
+        par, results.experiment, recorded_runs(results.envelope, driven, fs), sigma
+    )
+    if not np.all(np.isfinite(F0)):
+        raise HystdiscError(
+            "results: the fitted model diverges on a run it was fitted to; fix: rerun "
+            "hystdisc discover"
+        )
+    F0 = F0.sum(axis=0)
+    fixed = getattr(par, "fixed", {}) or {}
+    p = par.params(par.x0)
+    names = [k for k in p if k not in fixed]
+    G = parameter_gradient(par, par.x0, names)
+    rebuilt = dict(zip(names, map(float, interval_widths(F0, G)), strict=True))
+    stored = _stored_widths(results, family)
+    before = {k: stored.get(k, rebuilt[k]) for k in names}
+    notes = [
+        f"{k}: the runs rebuilt from the training envelope give an interval "
+        f"{rebuilt[k] / before[k]:.2g} times the fit's (the expected widths are scaled back)"
+        for k in names
+        if before[k] > 0
+        and not 1 / REBUILD_TOLERANCE <= rebuilt[k] / before[k] <= REBUILD_TOLERANCE
+    ]
+    vals = {k: float(p[k]) for k in names}
+    pinned = [
+        n
+        for n, x, lo, hi in zip(par.names, par.x0, par.lower, par.upper, strict=True)
+        if min(x - lo, hi - x) <= BOUND_TOL * (1.0 + abs(x))
+    ]
+    notes += [f"{k} is held by a bound in the fit: its interval is not judged" for k in pinned]
+    judged = [k for k in names if vals[k] != 0 and k not in pinned]
+    if not judged:
+        raise HystdiscError("results: every parameter is zero or at a bound; fix: refit")
+    return Information(
+        results, par, names, vals, sigma, fs, duration, F0, G, rebuilt, before, judged, notes
+    )
+
+
+def expected_widths(results, runs: list[RunSpec]) -> dict[str, float]:
+    """The 95 % interval widths expected after recording ``runs`` too.
+
+    Examples
+    --------
+    >>> from hystdisc import Discovery
+    >>> from hystdisc.simulation.synth import generate
+    >>> data = generate("dahl", currents=(0, 0.5), theta0=0.05, duration=2.0, fs=500, seed=1)
+    >>> res = Discovery(model="dahl", heldout=False, close_loop=False).fit(data).results_
+    >>> now = expected_widths(res, [])
+    >>> now["rho"] == res.selected.parameters["rho"].ci95[1] - res.selected.parameters["rho"].ci95[0]
+    True
+    >>> more = expected_widths(res, [RunSpec("release", 1.0, 0.2, duration=2.0, fs=500.0)])
+    >>> all(more[k] < now[k] for k in now)
+    True
+    """
+    info = information_in_hand(results)
+    F = info.F0 + info.of(list(runs)).sum(axis=0)
+    if not np.all(np.isfinite(F)):
+        raise HystdiscError("the fitted model diverges on one of the runs; fix: change the runs")
+    return dict(zip(info.names, map(float, info.widths(F)), strict=True))
+
+
 def design(
     results,
     budget: int = 3,
@@ -106,7 +259,7 @@ def design(
     ------
     HystdiscError
         For a budget below 1, a file without a training envelope, a forced experiment,
-        or a model that diverges on a candidate.
+        or a model that diverges on every candidate.
 
     Examples
     --------
@@ -120,47 +273,25 @@ def design(
     """
     if isinstance(budget, bool) or not isinstance(budget, (int, np.integer)) or budget < 1:
         raise HystdiscError(f"budget {budget!r} is not a whole number >= 1; fix: give 1 or more")
-    if not results.envelope or not results.envelope.get("runs"):
-        raise HystdiscError(
-            "results: no training envelope (a file written before schema 3); fix: rerun "
-            "hystdisc discover"
-        )
-    family = results.family
-    if family not in results.families:
-        raise HystdiscError("results: no selected family; fix: rerun hystdisc discover")
+    info = information_in_hand(results)
+    family, par, sigma = results.family, info.par, info.sigma
     driven = experiment_kind(results.experiment)
-    par, values = fitted_parametrization(results)
-    sigma = _sigma(results, family)
-    fs, duration = _sampling(results)
-    recorded = recorded_runs(results.envelope, driven, fs)
-    cands = candidates or candidate_runs(results.envelope, driven, fs, duration, currents)
-    F0 = run_information(par, results.experiment, recorded, sigma).sum(axis=0)
-    Fc = run_information(par, results.experiment, cands, sigma)
-    fixed = getattr(par, "fixed", {}) or {}
-    names = [k for k in par.params(par.x0) if k not in fixed]
-    G = parameter_gradient(par, par.x0, names)
-    rebuilt = dict(zip(names, map(float, interval_widths(F0, G)), strict=True))
-    stored = _stored_widths(results, family)
-    before = {k: stored.get(k, rebuilt[k]) for k in names}
-    scale = np.array([before[k] / rebuilt[k] if rebuilt[k] > 0 else 1.0 for k in names])
-    vals = np.array([abs(values.get(k, par.params(par.x0)[k])) for k in names])
-    judged = vals > 0
-
-    def widest(F: np.ndarray) -> float:
-        rel = scale * interval_widths(F, G) / np.where(judged, vals, 1.0)
-        return float(np.max(rel[judged]))
-
-    picks, steps = greedy(F0, Fc, widest, int(budget))
-    F = F0 + Fc[picks].sum(axis=0)
-    after = dict(zip(names, map(float, scale * interval_widths(F, G)), strict=True))
-    alone = sorted(((widest(F0 + Fc[c]), c) for c in range(len(cands))), key=lambda x: x[0])
-    notes = [
-        f"{k}: the runs rebuilt from the training envelope give an interval "
-        f"{rebuilt[k] / before[k]:.2g} times the fit's (the expected widths are scaled back)"
-        for k in names
-        if before[k] > 0
-        and not 1 / REBUILD_TOLERANCE <= rebuilt[k] / before[k] <= REBUILD_TOLERANCE
-    ]
+    cands = candidates or candidate_runs(results.envelope, driven, info.fs, info.duration, currents)
+    Fc = info.of(cands)
+    ok = [c for c in range(len(cands)) if np.all(np.isfinite(Fc[c]))]
+    notes = list(info.notes)
+    if len(ok) < len(cands):
+        dropped = [cands[c].label() for c in range(len(cands)) if c not in ok]
+        notes.append(f"the fitted model diverges on {len(dropped)} candidates ({dropped[0]}, ...)")
+    if not ok:
+        raise HystdiscError(
+            "results: the fitted model diverges on every candidate run; fix: give other currents"
+        )
+    cands, Fc = [cands[c] for c in ok], Fc[ok]
+    picks, steps = greedy(info.F0, Fc, info.widest, int(budget))
+    F = info.F0 + Fc[picks].sum(axis=0)
+    after = dict(zip(info.names, map(float, info.widths(F)), strict=True))
+    alone = sorted((info.widest(info.F0 + Fc[c]), c) for c in range(len(cands)))
     sep = {}
     others = [f for f in results.equal_fits if f != family and f in results.families]
     if others:
@@ -179,10 +310,11 @@ def design(
         family=family,
         experiment=results.experiment,
         sigma=sigma,
-        names=names,
-        values={k: float(par.params(par.x0)[k]) for k in names},
-        widths_before=before,
-        predicted_before=rebuilt,
+        names=info.names,
+        judged=info.judged,
+        values=info.values,
+        widths_before=info.before,
+        predicted_before=info.rebuilt,
         widths_after=after,
         runs=[cands[c] for c in picks],
         widest_steps=steps,

@@ -33,6 +33,9 @@ MAX_ANGLE = 1.0
 #: (multiples of the trained frequency) of the default driven grid.
 AMPLITUDE_FACTORS = (0.5, 1.0, 2.0)
 FREQUENCY_FACTORS = (0.5, 1.0, 2.0, 4.0)
+#: Largest peak velocity of the default driven grid, in multiples of the trained one (a
+#: model says little far beyond its envelope, and the rig has its limits).
+MAX_SPEED_FACTOR = 2.0
 #: Multisine bands of the default driven grid, multiples of the trained frequency.
 BANDS = ((0.25, 1.0), (0.5, 2.0), (1.0, 4.0))
 #: Lines of a multisine (Schroeder phases).
@@ -162,13 +165,15 @@ def candidate_runs(
     A release set gets every angle of :data:`ANGLE_FACTORS` times the largest trained
     angle (at most :data:`MAX_ANGLE`) at every current; a driven set every sine of
     :data:`AMPLITUDE_FACTORS` x :data:`FREQUENCY_FACTORS` and every multisine of
-    :data:`BANDS` at every current. Currents default to :func:`default_currents`.
+    :data:`BANDS` (peak displacement the trained one) at every current, none faster than
+    :data:`MAX_SPEED_FACTOR` times the trained peak velocity (a multisine is scaled down
+    to it). Currents default to :func:`default_currents`.
 
     Examples
     --------
     >>> env = {"theta_max": 0.1, "theta_dot_max": 1.0, "current_max": 0.5}
     >>> len(candidate_runs(env, False, 500.0, 3.0)), len(candidate_runs(env, True, 500.0, 3.0))
-    (20, 75)
+    (20, 60)
     """
     cur = currents if currents is not None else default_currents(envelope)
     amax = float(envelope.get("theta_max") or 0.1)
@@ -178,11 +183,20 @@ def candidate_runs(
         for i in cur:
             out.extend(RunSpec("release", i, a, 0.0, (), duration, fs) for a in angles)
         return out
-    f0 = float(envelope.get("theta_dot_max") or 2 * np.pi * amax) / (2 * np.pi * amax)
+    vmax = float(envelope.get("theta_dot_max") or 2 * np.pi * amax)
+    f0 = vmax / (2 * np.pi * amax)
+    sines = [
+        (fa * amax, ff * f0)
+        for fa in AMPLITUDE_FACTORS
+        for ff in FREQUENCY_FACTORS
+        if fa * ff <= MAX_SPEED_FACTOR * (1 + 1e-9)
+    ]
+    multi = []
+    for lo, hi in BANDS:
+        spec = RunSpec("multisine", 0.0, amax, 0.0, (lo * f0, hi * f0), duration, fs)
+        peak = float(np.max(np.abs(spec.motion()[2])))
+        multi.append((amax * min(1.0, MAX_SPEED_FACTOR * vmax / peak), spec.band))
     for i in cur:
-        for fa in AMPLITUDE_FACTORS:
-            for ff in FREQUENCY_FACTORS:
-                out.append(RunSpec("sine", i, fa * amax, ff * f0, (), duration, fs))
-        for lo, hi in BANDS:
-            out.append(RunSpec("multisine", i, amax, 0.0, (lo * f0, hi * f0), duration, fs))
+        out.extend(RunSpec("sine", i, a, f, (), duration, fs) for a, f in sines)
+        out.extend(RunSpec("multisine", i, a, 0.0, b, duration, fs) for a, b in multi)
     return out
