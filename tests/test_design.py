@@ -24,10 +24,11 @@ import pytest
 
 from hystdisc.cli import main
 from hystdisc.data import Dataset
-from hystdisc.design import DesignResult, RunSpec, design
+from hystdisc.design import DesignResult, RunSpec, design, expected_widths
 from hystdisc.errors import HystdiscError
 from hystdisc.estimator import Discovery
 from hystdisc.fitting.predict import predict_dataset
+from hystdisc.results import Results
 from hystdisc.simulation.synth import generate, write_dataset
 
 TRUTH = "bouc-wen"  # the family's demo parameters, inside its bounds
@@ -123,6 +124,22 @@ def test_design_result_attributes(poor):
     assert scores == sorted(scores) and len(scores) == 20
     assert plan.summary()["runs"][0]["label"] == plan.runs[0].label()
     assert plan.separation == {}  # one family fitted: nothing to tell apart
+
+
+def test_expected_widths_and_the_parameters_judged(poor):
+    _, disc, plan = poor
+    res = Results.from_dict(disc.results_.to_dict())  # a copy to change
+    assert expected_widths(res, plan.runs) == pytest.approx(plan.widths_after, rel=1e-9)
+    # an interval reaching an admissible 0 (c_2 >= 0): its relative width means nothing
+    res.families[TRUTH].parameters["c_2"].ci95 = [-1.0, 2.0]
+    other = design(res, budget=1)
+    assert "c_2" not in other.judged and "n" in other.judged
+    assert any(note.startswith("c_2: its 95 % interval reaches 0") for note in other.notes)
+    # unless it is named: then it is the one interval shrunk
+    target = design(res, budget=1, parameters=["c_2"])
+    assert target.judged == ["c_2"] and target.widest_before == "c_2"
+    with pytest.raises(HystdiscError, match="no fitted parameter 'c3' in bouc-wen; fix: use"):
+        design(res, budget=1, parameters=["c3"])
 
 
 def test_separation_is_the_distance_of_the_two_predictions(poor):

@@ -51,6 +51,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         metavar="I,I,...",
         help="currents of the candidate runs, A (default: 0 to twice the largest trained)",
     )
+    p.add_argument(
+        "--parameters",
+        type=lambda text: [x.strip() for x in text.split(",") if x.strip()],
+        metavar="P,P,...",
+        help="parameters whose widest relative interval to shrink (default: every one not "
+        "at a bound and told from 0)",
+    )
     p.add_argument("--out", metavar="FILE", help="also write the design (.json: as JSON)")
     p.add_argument("--force", action="store_true", help="overwrite FILE")
     p.add_argument("--quiet", action="store_true", help="print nothing but errors")
@@ -73,7 +80,7 @@ def run(args: argparse.Namespace) -> int:
         )
     res = Results.load(args.results)
     try:
-        plan = design(res, budget=args.budget, currents=args.currents)
+        plan = design(res, budget=args.budget, currents=args.currents, parameters=args.parameters)
     except HystdiscError as exc:
         msg = str(exc)
         if msg.startswith("results: "):

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from hystdisc.data import Run, trim_release
 from hystdisc.design.runs import RunSpec
 from hystdisc.errors import HystdiscError
 from hystdisc.fitting import (
@@ -124,7 +125,9 @@ def fit_data(experiment: str, specs: list[RunSpec], noise_std: float) -> FitData
     return FitData(experiment, names, t, y, currents, th, w, u, m, noise_std)
 
 
-def run_information(par, experiment: str, specs: list[RunSpec], sigma: float) -> np.ndarray:
+def run_information(
+    par, experiment: str, specs: list[RunSpec], sigma: float, trim_noise: float | None = None
+) -> np.ndarray:
     """Each run's Fisher information on the free parameters of ``par`` at ``par.x0``.
 
     Parameters
@@ -137,6 +140,10 @@ def run_information(par, experiment: str, specs: list[RunSpec], sigma: float) ->
         The runs.
     sigma : float
         Noise standard deviation of the measured output, data units.
+    trim_noise : float, optional
+        Release runs only: the tail where the simulated motion has died below 3 times
+        this noise is left out, as the fit cuts it (:func:`~hystdisc.data.trim_release`);
+        None keeps every sample.
 
     Returns
     -------
@@ -148,15 +155,21 @@ def run_information(par, experiment: str, specs: list[RunSpec], sigma: float) ->
     if not specs:
         return np.zeros((0, len(par.names), len(par.names)))
     data = fit_data(experiment, specs, sigma)
-    fitter = OutputErrorFitter(data, par, rel_step=REL_STEP)
-    nu = data.nuisance_start(fitter.state)
-    v = np.concatenate([par.x0, nu])
+    state = par.has_state()
+    nu = data.nuisance_start(state)
     status: list[bool] = []
     runs = list(range(data.n_runs))
-    nus = list(nu.reshape(len(runs), fitter.nnu))
-    par.simulate(data, [par.model(par.x0)] * len(runs), runs, nus, status_out=status)
+    nus = list(nu.reshape(len(runs), data.n_nuisance(state)))
     with np.errstate(all="ignore"):
-        J = fitter.jacobian(v) / sigma
+        base = par.simulate(data, [par.model(par.x0)] * len(runs), runs, nus, status_out=status)
+    if trim_noise and get_experiment(experiment).starts_at_rest:
+        for r in runs:
+            if not status[r]:
+                run = Run(str(r), data.t[r], base[r], float(data.currents[r]))
+                data.mask[r][trim_release(run, trim_noise).n :] = False
+    fitter = OutputErrorFitter(data, par, rel_step=REL_STEP)
+    with np.errstate(all="ignore"):
+        J = fitter.jacobian(np.concatenate([par.x0, nu])) / sigma
     k, nn = fitter.npar, fitter.nnu
     out = np.empty((len(specs), k, k))
     for r in runs:

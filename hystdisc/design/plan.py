@@ -51,8 +51,18 @@ def _sampling(results) -> tuple[float, float]:
     return float(f"{np.median(rates):.6g}"), float(np.median(durations))
 
 
+def _uses_final(results, family: str) -> bool:
+    """The design works on the final model (the family with its accepted effects)."""
+    final = results.final
+    return final is not None and final.family == family
+
+
 def _sigma(results, family: str) -> float:
-    rms = results.families[family].rms
+    """The residual RMS the fit's intervals were computed with."""
+    if _uses_final(results, family) and results.residual is not None:
+        rms = results.residual.rms  # the final model's residual
+    else:
+        rms = results.families[family].rms
     sigma = rms if rms else results.noise_std
     if not sigma or not np.isfinite(sigma) or sigma <= 0:
         raise HystdiscError(
@@ -62,9 +72,14 @@ def _sigma(results, family: str) -> float:
     return float(sigma)
 
 
-def _stored_widths(results, family: str) -> dict[str, float]:
+def _trim(results, sigma: float) -> float:
+    """The noise level a release record is trimmed at (the measured noise)."""
+    return float(results.noise_std or sigma)
+
+
+def _stored_widths(results, family: str, final: bool) -> dict[str, float]:
     params = results.families[family].parameters
-    if results.final is not None and results.final.family == family and results.final.parameters:
+    if final and results.final.parameters:
         params = results.final.parameters
     out = {}
     for k, p in params.items():
@@ -146,11 +161,16 @@ class Information:
 
     def of(self, specs: list[RunSpec]) -> np.ndarray:
         """Each run's information, ``(len(specs), k, k)`` (NaN: the model diverges)."""
-        return run_information(self.par, self.results.experiment, specs, self.sigma)
+        trim = _trim(self.results, self.sigma)
+        return run_information(self.par, self.results.experiment, specs, self.sigma, trim)
 
 
-def information_in_hand(results) -> Information:
+def information_in_hand(results, parameters: list[str] | None = None) -> Information:
     """The fit's model and the information of the runs it saw (rebuilt from its envelope).
+
+    ``parameters`` names the parameters whose relative width counts (default: every
+    parameter not held by a bound in the fit and not indistinguishable from an admissible
+    zero).
 
     Raises
     ------
@@ -170,9 +190,8 @@ def information_in_hand(results) -> Information:
     par, values = fitted_parametrization(results)
     sigma = _sigma(results, family)
     fs, duration = _sampling(results)
-    F0 = run_information(
-        par, results.experiment, recorded_runs(results.envelope, driven, fs), sigma
-    )
+    recorded = recorded_runs(results.envelope, driven, fs)
+    F0 = run_information(par, results.experiment, recorded, sigma, _trim(results, sigma))
     if not np.all(np.isfinite(F0)):
         raise HystdiscError(
             "results: the fitted model diverges on a run it was fitted to; fix: rerun "
@@ -184,7 +203,7 @@ def information_in_hand(results) -> Information:
     names = [k for k in p if k not in fixed]
     G = parameter_gradient(par, par.x0, names)
     rebuilt = dict(zip(names, map(float, interval_widths(F0, G)), strict=True))
-    stored = _stored_widths(results, family)
+    stored = _stored_widths(results, family, _uses_final(results, family))
     before = {k: stored.get(k, rebuilt[k]) for k in names}
     notes = [
         f"{k}: the runs rebuilt from the training envelope give an interval "
@@ -200,9 +219,35 @@ def information_in_hand(results) -> Information:
         if min(x - lo, hi - x) <= BOUND_TOL * (1.0 + abs(x))
     ]
     notes += [f"{k} is held by a bound in the fit: its interval is not judged" for k in pinned]
-    judged = [k for k in names if vals[k] != 0 and k not in pinned]
+    bounds = dict(zip(par.names, zip(par.lower, par.upper, strict=True), strict=True))
+    # a relative width means nothing for a value that cannot be told from an admissible 0
+    unsure = [
+        k
+        for k in names
+        if k not in pinned
+        and abs(vals[k]) <= before[k] / 2
+        and bounds.get(k, (-np.inf, np.inf))[0] <= 0 <= bounds.get(k, (-np.inf, np.inf))[1]
+    ]
+    notes += [
+        f"{k}: its 95 % interval reaches 0, an admissible value: its width relative to the "
+        "value is not judged (name it with parameters= / --parameters to target it)"
+        for k in unsure
+    ]
+    if parameters is not None:
+        unknown = [k for k in parameters if k not in names]
+        if unknown:
+            raise HystdiscError(
+                f"results: no fitted parameter '{unknown[0]}' in {family}; fix: use some of "
+                f"{', '.join(names)}"
+            )
+        judged = [k for k in names if k in parameters and vals[k] != 0]
+    else:
+        judged = [k for k in names if vals[k] != 0 and k not in pinned and k not in unsure]
     if not judged:
-        raise HystdiscError("results: every parameter is zero or at a bound; fix: refit")
+        raise HystdiscError(
+            "results: no parameter to judge (each is zero, at a bound or not told from 0); "
+            "fix: name the parameters to target"
+        )
     return Information(
         results, par, names, vals, sigma, fs, duration, F0, G, rebuilt, before, judged, notes
     )
@@ -236,6 +281,7 @@ def design(
     budget: int = 3,
     candidates: list[RunSpec] | None = None,
     currents: list[float] | None = None,
+    parameters: list[str] | None = None,
 ) -> DesignResult:
     """The next ``budget`` runs that most shrink the widest 95 % interval of a fit.
 
@@ -250,6 +296,9 @@ def design(
         :func:`~hystdisc.design.runs.candidate_runs` around the training envelope.
     currents : list of float, optional
         Currents of the default grid (default: 0 to twice the largest trained current).
+    parameters : list of str, optional
+        The parameters whose widest relative interval is shrunk (default: see
+        :func:`information_in_hand`).
 
     Returns
     -------
@@ -273,7 +322,7 @@ def design(
     """
     if isinstance(budget, bool) or not isinstance(budget, (int, np.integer)) or budget < 1:
         raise HystdiscError(f"budget {budget!r} is not a whole number >= 1; fix: give 1 or more")
-    info = information_in_hand(results)
+    info = information_in_hand(results, parameters)
     family, par, sigma = results.family, info.par, info.sigma
     driven = experiment_kind(results.experiment)
     cands = candidates or candidate_runs(results.envelope, driven, info.fs, info.duration, currents)
