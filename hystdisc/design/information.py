@@ -29,10 +29,12 @@ from hystdisc.fitting import (
     FamilySystemParametrization,
     FitData,
     OutputErrorFitter,
+    Parametrization,
     family_parametrization,
 )
 from hystdisc.models import get_family
 from hystdisc.registry import get_experiment
+from hystdisc.results import Results
 
 #: Relative step of the forward differences (the fitter's).
 REL_STEP = 1e-6
@@ -49,7 +51,9 @@ def schur(F: np.ndarray, k: int) -> np.ndarray:
     return A - B @ np.linalg.pinv(C, rcond=1e-12, hermitian=True) @ B.T
 
 
-def fitted_parametrization(results, family: str | None = None):
+def fitted_parametrization(
+    results: Results, family: str | None = None
+) -> tuple[Parametrization, dict[str, float]]:
     """The parametrization of a fit of ``results`` at its fitted values, and its source.
 
     Parameters
@@ -126,7 +130,11 @@ def fit_data(experiment: str, specs: list[RunSpec], noise_std: float) -> FitData
 
 
 def run_information(
-    par, experiment: str, specs: list[RunSpec], sigma: float, trim_noise: float | None = None
+    par: Parametrization,
+    experiment: str,
+    specs: list[RunSpec],
+    sigma: float,
+    trim_noise: float | None = None,
 ) -> np.ndarray:
     """Each run's Fisher information on the free parameters of ``par`` at ``par.x0``.
 

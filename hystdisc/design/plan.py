@@ -28,6 +28,8 @@ from hystdisc.design.information import (
 from hystdisc.design.runs import RunSpec, candidate_runs, recorded_runs
 from hystdisc.design.select import greedy, interval_widths, parameter_gradient, separation
 from hystdisc.errors import HystdiscError
+from hystdisc.fitting import Parametrization
+from hystdisc.results import Results
 
 #: Candidates listed per family in the separation ranking.
 SEPARATION_TOP = 5
@@ -37,7 +39,7 @@ REBUILD_TOLERANCE = 2.0
 BOUND_TOL = 1e-9
 
 
-def _sampling(results) -> tuple[float, float]:
+def _sampling(results: Results) -> tuple[float, float]:
     """Sampling rate and median duration of the training runs."""
     env = results.envelope or {}
     rates, durations = [], []
@@ -51,13 +53,13 @@ def _sampling(results) -> tuple[float, float]:
     return float(f"{np.median(rates):.6g}"), float(np.median(durations))
 
 
-def _uses_final(results, family: str) -> bool:
+def _uses_final(results: Results, family: str) -> bool:
     """The design works on the final model (the family with its accepted effects)."""
     final = results.final
     return final is not None and final.family == family
 
 
-def _sigma(results, family: str) -> float:
+def _sigma(results: Results, family: str) -> float:
     """The residual RMS the fit's intervals were computed with."""
     if _uses_final(results, family) and results.residual is not None:
         rms = results.residual.rms  # the final model's residual
@@ -72,12 +74,12 @@ def _sigma(results, family: str) -> float:
     return float(sigma)
 
 
-def _trim(results, sigma: float) -> float:
+def _trim(results: Results, sigma: float) -> float:
     """The noise level a release record is trimmed at (the measured noise)."""
     return float(results.noise_std or sigma)
 
 
-def _stored_widths(results, family: str, final: bool) -> dict[str, float]:
+def _stored_widths(results: Results, family: str, final: bool) -> dict[str, float]:
     params = results.families[family].parameters
     if final and results.final.parameters:
         params = results.final.parameters
@@ -89,7 +91,7 @@ def _stored_widths(results, family: str, final: bool) -> dict[str, float]:
     return out
 
 
-def _outputs(par, experiment: str, specs: list[RunSpec], sigma: float):
+def _outputs(par: Parametrization, experiment: str, specs: list[RunSpec], sigma: float):
     data = fit_data(experiment, specs, sigma)
     nn = data.n_nuisance(par.has_state())
     nus = list(data.nuisance_start(par.has_state()).reshape(len(specs), nn))
@@ -131,8 +133,8 @@ class Information:
         Remarks (a rebuild far from the fit's intervals).
     """
 
-    results: object
-    par: object
+    results: Results
+    par: Parametrization
     names: list[str]
     values: dict[str, float]
     sigma: float
@@ -165,7 +167,7 @@ class Information:
         return run_information(self.par, self.results.experiment, specs, self.sigma, trim)
 
 
-def information_in_hand(results, parameters: list[str] | None = None) -> Information:
+def information_in_hand(results: Results, parameters: list[str] | None = None) -> Information:
     """The fit's model and the information of the runs it saw (rebuilt from its envelope).
 
     ``parameters`` names the parameters whose relative width counts (default: every
@@ -253,7 +255,7 @@ def information_in_hand(results, parameters: list[str] | None = None) -> Informa
     )
 
 
-def expected_widths(results, runs: list[RunSpec]) -> dict[str, float]:
+def expected_widths(results: Results, runs: list[RunSpec]) -> dict[str, float]:
     """The 95 % interval widths expected after recording ``runs`` too.
 
     Examples
@@ -277,7 +279,7 @@ def expected_widths(results, runs: list[RunSpec]) -> dict[str, float]:
 
 
 def design(
-    results,
+    results: Results,
     budget: int = 3,
     candidates: list[RunSpec] | None = None,
     currents: list[float] | None = None,

@@ -26,6 +26,7 @@ from collections.abc import Callable
 import numpy as np
 
 from hystdisc.design.information import Z95
+from hystdisc.fitting import Parametrization
 
 
 def covariance(F: np.ndarray) -> np.ndarray:
@@ -46,7 +47,7 @@ def covariance(F: np.ndarray) -> np.ndarray:
     return (V * inv) @ V.T / np.outer(d, d)
 
 
-def parameter_gradient(par, x: np.ndarray, keys: list[str]) -> np.ndarray:
+def parameter_gradient(par: Parametrization, x: np.ndarray, keys: list[str]) -> np.ndarray:
     """``d p / d x`` of the reported parameters ``keys`` (free and derived) by the free
     vector, by forward differences (the fitter's step, ``1e-7 max(|x|, 1e-6)``)."""
     p = par.params(x)
@@ -112,7 +113,9 @@ def greedy(
     return picks, values
 
 
-def separation(y_a: list[np.ndarray], y_b: list[np.ndarray], masks, sigma: float) -> np.ndarray:
+def separation(
+    y_a: list[np.ndarray], y_b: list[np.ndarray], masks: list[np.ndarray], sigma: float
+) -> np.ndarray:
     """How far apart two models' outputs are on each run, in noise units:
     ``sum((y_a - y_b)^2) / sigma^2`` over the samples a fit would use.
 
