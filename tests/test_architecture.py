@@ -28,6 +28,7 @@ LAYERS = [
     ("hystdisc.fitting",),
     ("hystdisc.closing",),
     ("hystdisc.results",),
+    ("hystdisc.design",),
     ("hystdisc.estimator",),
     ("hystdisc.plotting",),
     ("hystdisc.report",),

@@ -24,7 +24,7 @@ import warnings
 from hystdisc import __version__
 from hystdisc.errors import HystdiscError, HystdiscWarning
 
-COMMANDS = ("discover", "predict", "simulate", "report", "study")
+COMMANDS = ("discover", "predict", "simulate", "report", "study", "design")
 
 
 class OneLineParser(argparse.ArgumentParser):

@@ -29,6 +29,9 @@ control and issue trackers). The sections, each an ``<h2>`` with the id in
     Stage 1: the hysteresis shapes compared and the STLSQ term-selection path.
 ``closing``
     The closing loop: effects tried, before/after RMS, the residual spectrum and whiteness.
+``what-to-test-next``
+    The runs to record next and the 95 % intervals expected after them
+    (:func:`hystdisc.design.design`; ``hystdisc report --design N``).
 
 Figures are drawn on :class:`matplotlib.figure.Figure` objects (no pyplot state, no change
 to ``rcParams``) with the ``ax=`` functions of :mod:`hystdisc.plotting`.
@@ -36,8 +39,8 @@ to ``rcParams``) with the ``ax=`` functions of :mod:`hystdisc.plotting`.
 The modules: :mod:`~hystdisc.report.signals` (what is drawn, from the estimator's public
 fitted attributes), :mod:`~hystdisc.report.markup` (cells, tables, figures),
 :mod:`~hystdisc.report.document` (the HTML and Markdown under construction), the sections
-in :mod:`~hystdisc.report.overview`, :mod:`~hystdisc.report.comparison` and
-:mod:`~hystdisc.report.stages`, and :mod:`~hystdisc.report.writing`.
+in :mod:`~hystdisc.report.overview`, :mod:`~hystdisc.report.comparison`,
+:mod:`~hystdisc.report.stages` and :mod:`~hystdisc.report.design`, and :mod:`~hystdisc.report.writing`.
 
 Examples
 --------

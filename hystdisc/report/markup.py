@@ -23,6 +23,7 @@ SECTIONS: tuple[tuple[str, str], ...] = (
     ("correspondence", "Term correspondence (seed, section 5)"),
     ("selection", "Term selection (stage 1)"),
     ("closing", "Closing the loop"),
+    ("what-to-test-next", "What to test next"),
 )
 
 #: Colours of the families in every figure (the seed's: Dahl blue, Bouc-Wen green, LuGre red).

@@ -10,6 +10,7 @@ from hystdisc.data import Dataset, atomic_write_text
 from hystdisc.errors import HystdiscError
 from hystdisc.report.comparison import ComparisonSections
 from hystdisc.report.currents import CurrentSections
+from hystdisc.report.design import DesignSections
 from hystdisc.report.document import Document
 from hystdisc.report.markup import CSS, SECTIONS, esc, md_line
 from hystdisc.report.overview import OverviewSections
@@ -17,8 +18,14 @@ from hystdisc.report.signals import check_fitted
 from hystdisc.report.stages import StageSections
 
 
-class Report(Document, OverviewSections, ComparisonSections, CurrentSections, StageSections):
+class Report(
+    Document, OverviewSections, ComparisonSections, CurrentSections, StageSections, DesignSections
+):
     """The whole report: the document and every section (one method per section id)."""
+
+    def __init__(self, disc, dataset: Dataset, max_runs: int, dpi: int, design=None) -> None:
+        super().__init__(disc, dataset, max_runs, dpi)
+        self.design = design
 
 
 def render_report(
@@ -27,6 +34,7 @@ def render_report(
     max_runs: int = 5,
     dpi: int = 90,
     progress: Callable[[str], None] | None = None,
+    design=None,
 ) -> tuple[str, str]:
     """The report of a fitted discovery as text: ``(html, markdown)``.
 
@@ -42,6 +50,9 @@ def render_report(
         Resolution of the embedded PNG figures.
     progress : callable, optional
         Called with a short message per section.
+    design : DesignResult or str, optional
+        The runs to record next (:func:`hystdisc.design.design`) for the section "What
+        to test next", or why there is none; None: the section says how to get one.
 
     Returns
     -------
@@ -51,7 +62,7 @@ def render_report(
         The Markdown summary (tables only, no figures).
     """
     check_fitted(disc)
-    rep = Report(disc, dataset, max_runs, dpi)
+    rep = Report(disc, dataset, max_runs, dpi, design)
     title = f"hystdisc report — {rep.res.input}"
     for sid, _ in SECTIONS:
         if progress is not None:
@@ -119,6 +130,7 @@ def write_report(
     max_runs: int = 5,
     dpi: int = 90,
     progress: Callable[[str], None] | None = None,
+    design=None,
 ) -> Path:
     """Write the HTML report of a fitted discovery, and its Markdown summary beside it.
 
@@ -133,7 +145,7 @@ def write_report(
         nothing is written).
     markdown : bool
         Also write the Markdown summary.
-    max_runs, dpi, progress
+    max_runs, dpi, progress, design
         See :func:`render_report`.
 
     Returns
@@ -143,7 +155,7 @@ def write_report(
     """
     target = Path(path)
     check_report_path(target, force, markdown)
-    html_text, md_text = render_report(disc, dataset, max_runs, dpi, progress)
+    html_text, md_text = render_report(disc, dataset, max_runs, dpi, progress, design)
     out = atomic_write_text(target, html_text, force=force)
     if markdown:
         atomic_write_text(markdown_path(target), md_text, force=force)
