@@ -114,7 +114,7 @@ def test_the_errors_page_lists_every_error_and_warning_class(site):
     page = (out / "errors.html").read_text(encoding="utf-8")
     for name in ("HystdiscError", "HystdiscWarning", "ImplausibleUnitsWarning", "SchemaError"):
         assert name in page
-    assert "fix: remove or fill the missing samples" in page  # the README's table
+    assert "re-save the file as UTF-8" in page  # a row of the README's table
 
 
 # -- docstrings ---------------------------------------------------------------------------

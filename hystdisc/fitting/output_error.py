@@ -197,6 +197,9 @@ class OutputErrorFitter:
         )
 
     def residuals(self, v, work_out: list | None = None):
+        """Simulated minus measured output of every run at the vector ``v`` (the model's
+        parameters, then each run's nuisance ones), masked samples left out, runs
+        concatenated; ``work_out``, when given, receives the integration work."""
         x, nu = self._split(v)
         tm = self.par.model(x)
         runs = list(range(self.data.n_runs))
