@@ -849,18 +849,7 @@ class Discovery(BaseEstimator):
     def predict(self, dataset: Dataset, family: str | None = None) -> list[np.ndarray]:
         """Simulate the fitted model on the runs of ``dataset``.
 
-        Parameters
-        ----------
-        dataset : Dataset
-            The runs to simulate (of the experiment type the model was fitted on).
-        family : str, optional
-            A compared family's fit to simulate instead; without it, the selected family
-            with the effects the closing loop accepted.
-
-        Returns
-        -------
-        list of numpy.ndarray
-            The simulated output (angle or torque) of each run, on its time samples.
+        Without ``family``: the selected family with the effects the closing loop accepted.
         """
         self._check_fitted()
         if family is None:
@@ -870,18 +859,7 @@ class Discovery(BaseEstimator):
         return predict_dataset(fit.model, dataset, self.experiment_, self.input_hold)
 
     def score(self, dataset: Dataset) -> float:
-        """Coefficient of determination R^2 of the simulated output on ``dataset``.
-
-        Parameters
-        ----------
-        dataset : Dataset
-            Runs with measured output, simulated by :meth:`predict`.
-
-        Returns
-        -------
-        float
-            ``1 - SS_res / SS_tot`` over all samples of all runs.
-        """
+        """Coefficient of determination R^2 of the simulated output on ``dataset``."""
         preds = self.predict(dataset)
         output = get_experiment(self.experiment_).output
         meas = [getattr(r, output) for r in dataset.runs]
@@ -890,14 +868,7 @@ class Discovery(BaseEstimator):
         return float(1.0 - np.sum((y - p) ** 2) / np.sum((y - y.mean()) ** 2))
 
     def equations(self) -> str:
-        """pysindy-style print of the discovered equations.
-
-        Returns
-        -------
-        str
-            The torque equation and, for a hysteretic structure, ``dz/dt`` (and the
-            inertia ``J`` where it is identified), one per line.
-        """
+        """pysindy-style print of the discovered equations."""
         if not hasattr(self, "discovered_fit_"):
             self._check_fitted()
         tm = self.discovered_fit_.term_model
@@ -909,13 +880,7 @@ class Discovery(BaseEstimator):
         return "\n".join(lines)
 
     def print(self, file=None) -> None:
-        """Print the discovered equations (like ``pysindy.SINDy.print``).
-
-        Parameters
-        ----------
-        file : file-like, optional
-            Where to print (default: standard output).
-        """
+        """Print the discovered equations (like ``pysindy.SINDy.print``)."""
         print(self.equations(), file=file or sys.stdout)
 
     def _repr_html_(self) -> str:
