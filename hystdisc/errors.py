@@ -17,7 +17,14 @@ from __future__ import annotations
 
 
 class HystdiscError(Exception):
-    """A user-facing error with a one-line message (file, problem, fix)."""
+    """A user-facing error with a one-line message (file, problem, fix).
+
+    Parameters
+    ----------
+    message : str
+        ``FILE, run R: problem; fix: what to do`` (:func:`input_error` builds it); line
+        breaks and runs of spaces are joined into one line.
+    """
 
     def __init__(self, message: str) -> None:
         message = " ".join(str(message).split())  # always one line

@@ -844,6 +844,7 @@ class Discovery(BaseEstimator):
 
     @property
     def selected_fit_(self) -> OEFit:
+        """The output-error fit of the selected family (without the accepted effects)."""
         self._check_fitted()
         return self.family_fits_[self.family_]
 

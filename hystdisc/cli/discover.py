@@ -77,6 +77,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """Execute ``hystdisc discover``."""
     if args.each:
         return run_each(args)
     if args.jobs != 1 or args.scheduler:

@@ -33,6 +33,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """Execute ``hystdisc predict``."""
     import numpy as np
 
     from hystdisc.data import atomic_write_text

@@ -20,25 +20,25 @@ overwrite an existing file unless ``force=True`` and never leave a half-written 
 
 The modules, one job each:
 
-================  ===========================================================
-``dataset``       :class:`Run`, :class:`Dataset`, column names, current levels
-``units``         :func:`unit_factor`: a user's unit to SI
-``text``          reading text files and parsing fields and TOML (shared by the readers)
-``columns``       from read columns to a Dataset: column map, currents, runs
-``csvfile``       :func:`read_csv`
-``table``         :func:`read_table`
-``mat``           :func:`read_mat` and the forked probe of damaged files
-``rigs``          :func:`read_rig`, :func:`filter_windows`
-``loading``       :func:`load`
-``validation``    :func:`validate` and the checks of the motion
-``plausibility``  :func:`implausible_units`: magnitudes that do not fit a unit
-``preprocessing`` :func:`estimate_noise`, :func:`trim_release`
-``quantization``  :func:`detect_quantization`: an encoder's step and counts
-``noise``         :func:`measurement_noise`: period-to-period differences, the
-                  quantization floor (:class:`NoiseEstimate`)
-``writers``       :func:`atomic_write_bytes`, :func:`atomic_write_text`,
-                  :func:`write_csv`
-================  ===========================================================
+==================  ===========================================================
+``dataset``         :class:`Run`, :class:`Dataset`, column names, current levels
+``units``           :func:`unit_factor`: a user's unit to SI
+``text``            reading text files and parsing fields and TOML (shared by the readers)
+``columns``         from read columns to a Dataset: column map, currents, runs
+``csvfile``         :func:`read_csv`
+``table``           :func:`read_table`
+``mat``             :func:`read_mat` and the forked probe of damaged files
+``rigs``            :func:`read_rig`, :func:`filter_windows`
+``loading``         :func:`load`
+``validation``      :func:`validate` and the checks of the motion
+``plausibility``    :func:`implausible_units`: magnitudes that do not fit a unit
+``preprocessing``   :func:`estimate_noise`, :func:`trim_release`
+``quantization``    :func:`detect_quantization`: an encoder's step and counts
+``noise``           :func:`measurement_noise`: period-to-period differences, the
+                    quantization floor (:class:`NoiseEstimate`)
+``writers``         :func:`atomic_write_bytes`, :func:`atomic_write_text`,
+                    :func:`write_csv`
+==================  ===========================================================
 
 Examples
 --------

@@ -114,14 +114,17 @@ class Envelope:
 
     @property
     def theta_max(self) -> float:
+        """The largest ``|theta|`` over the runs."""
         return max((r.theta_max for r in self.runs), default=0.0)
 
     @property
     def theta_dot_max(self) -> float:
+        """The largest ``|theta_dot|`` over the runs."""
         return max((r.theta_dot_max for r in self.runs), default=0.0)
 
     @property
     def current_range(self) -> tuple[float, float]:
+        """The lowest and highest current of the runs."""
         cs = [r.current for r in self.runs] or [0.0]
         return (min(cs), max(cs))
 

@@ -9,24 +9,24 @@ another one; :func:`implausible_units` names it with the ``--units`` fix, and
 better). The bounds are physical, wide enough for any damper test we know of, and the
 same for every file:
 
-==========  ====================  ==========================================  ====================
-column      declared unit         implausible when                            fix named
-==========  ====================  ==========================================  ====================
-t           s                     sampled below :data:`MIN_FS` (10 Hz), or    ``--units t=ms``
+==========  ====================  ==============================================  ========================
+column      declared unit         implausible when                                fix named
+==========  ====================  ==============================================  ========================
+t           s                     sampled below :data:`MIN_FS` (10 Hz), or        ``--units t=ms``
                                   the motion slower than :data:`MIN_MOTION_HZ`
                                   (0.005 Hz, a period over 200 s)
-theta       rad (release)         a release angle beyond :data:`MAX_RELEASE`  ``--units theta=deg``
+theta       rad (release)         a release angle beyond :data:`MAX_RELEASE`      ``--units theta=deg``
                                   (π rad: a torsion rig's beam released more
                                   than half a turn)
-theta       m or rad (driven,     beyond :data:`MAX_MOTION` (2π: more than a  ``--units theta=mm``
-            forced)               turn of a rotary damper and more than 6 m,  or ``theta=deg``
+theta       m or rad (driven,     beyond :data:`MAX_MOTION` (2π: more than a      ``--units theta=mm``
+            forced)               turn of a rotary damper and more than 6 m,      or ``theta=deg``
                                   where damper strokes stay below 1 m)
-torque,     N or N·m              beyond :data:`MAX_FORCE` (1 MN or 1 MN·m;   ``--units torque=N*mm``
+torque,     N or N·m              beyond :data:`MAX_FORCE` (1 MN or 1 MN·m;       ``--units torque=N*mm``
 input                             the largest MR dampers built give about
                                   0.2-0.4 MN)
-current     A                     above :data:`MAX_CURRENT` (50 A; MR damper  ``--units current=mA``
+current     A                     above :data:`MAX_CURRENT` (50 A; MR damper      ``--units current=mA``
                                   coils take a few A)
-==========  ====================  ==========================================  ====================
+==========  ====================  ==============================================  ========================
 
 A unit mistake the bounds cannot see stays unseen: a driven displacement of 5 mm read as
 5 m, a release of 3 degrees read as 3 rad. The bundled datasets (``data_synth/``), the MR

@@ -66,7 +66,7 @@ SIMPLER_WITHIN = 1.1
 LINEAR_P = 0.05
 #: Range of the saturation current searched, in units of the largest current.
 I0_RANGE = (0.02, 50.0)
-#: Interval floor, relative to the largest |value| (an interval of 0 would let one level
+#: Interval floor, relative to the largest ``|value|`` (an interval of 0 would let one level
 #: decide everything).
 SE_FLOOR = 1e-3
 

@@ -202,6 +202,9 @@ class OutputErrorFitter:
         return np.concatenate([y[m] for y, m in zip(self.data.y, self.masks, strict=True)])
 
     def residuals(self, v, work_out: list | None = None):
+        """Simulated minus measured output of every run at the vector ``v`` (the model's
+        parameters, then each run's nuisance ones), masked samples left out, runs
+        concatenated; ``work_out``, when given, receives the integration work."""
         x, nu = self._split(v)
         tm = self.par.model(x)
         runs = list(range(self.data.n_runs))

@@ -52,6 +52,7 @@ class Parametrization:
     normalization: str = ""
 
     def terms(self, x: np.ndarray) -> TermModel:  # pragma: no cover - abstract
+        """The term model at the free parameter vector ``x``."""
         raise NotImplementedError
 
     def model(self, x: np.ndarray):

@@ -126,7 +126,7 @@ def term_rate(b, n, w, z):
 
 @numba.njit(cache=True, inline="always")
 def rate_stiffness(b, n, w, z):
-    """|d(dz/dt)/dz| and |d(dz/dt)/dw| (for the sub-step choice)."""
+    """``|d(dz/dt)/dz|`` and ``|d(dz/dt)/dw|`` (for the sub-step choice)."""
     aw = abs(w)
     az = abs(z)
     dz = abs(b[1]) * aw

@@ -21,6 +21,8 @@ class Model:
     effects : dict, optional
         Effect name -> dict of its parameters (unset ones take defaults).
 
+    Notes
+    -----
     A current law's coefficient among ``params`` (``alpha_i0``: the family's ``alpha``
     saturates, ``alpha_i2``: it is quadratic; see
     :meth:`~hystdisc.models.Family.law_params`) makes that law the model's.
@@ -57,11 +59,25 @@ class Model:
 
     @property
     def k_s(self) -> float:
+        """The rig's spring stiffness ``k_s`` (a rig parameter of :attr:`params`)."""
         return self.params["k_s"]
 
     def system(self, experiment: str):
         """The model as a state-space system with its values, for a system family
-        (:class:`~hystdisc.models.families.base.SystemFamily`)."""
+        (:class:`~hystdisc.models.families.base.SystemFamily`).
+
+        Parameters
+        ----------
+        experiment : str
+            The experiment type the system simulates (``release``, ``driven``, ``forced``).
+
+        Returns
+        -------
+        system : StateSpaceModel
+            The family's system with this model's effects and current laws.
+        values : dict of str to float
+            The parameter values the system takes (its own and the effects').
+        """
         sys = self.family.system(experiment, tuple(self.effects), self.laws)
         names = {p.name for p in sys.params}
         values = {k: v for k, v in self.params.items() if k in names}
@@ -70,7 +86,14 @@ class Model:
         return sys, values
 
     def to_terms(self) -> TermModel:
-        """The generic term form of this model (spring, damper and effects)."""
+        """The generic term form of this model (spring, damper and effects).
+
+        Returns
+        -------
+        TermModel
+            The family's terms with its current laws, the rig spring ``k_s`` on ``theta``,
+            the inertia ``J`` and the effects applied.
+        """
         tm = self.family.apply_laws(self.family.to_terms(self.params), self.params)
         tm.torque["theta"] = tm.torque.get("theta", 0.0) + self.params["k_s"]
         tm.J = self.params["J"]

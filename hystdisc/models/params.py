@@ -64,6 +64,9 @@ RIG_PARAMS = (
 def check_params(
     owner: str, specs: tuple[Param, ...], given: Mapping[str, float]
 ) -> dict[str, float]:
+    """The values of ``specs`` by name: those ``given`` (checked against the bounds) and
+    the defaults; an unknown name or a value out of bounds is a one-line HystdiscError
+    that names ``owner``."""
     known = {p.name: p for p in specs}
     for k in given:
         if k not in known:

@@ -205,15 +205,40 @@ class TermModel:
                 )
 
     def current(self, group: str, i):
-        """The current the ``i*<group>`` term sees (:func:`effective_current`)."""
+        """The current the ``i*<group>`` term sees (:func:`effective_current`).
+
+        Parameters
+        ----------
+        group : str
+            The term the current multiplies (``z``, ``theta_dot``, ...).
+        i : float or numpy.ndarray
+            The coil current, A.
+
+        Returns
+        -------
+        float or numpy.ndarray
+            ``i``, or ``i0 tanh(i / i0)`` when the group's current law saturates.
+        """
         return effective_current(i, self.saturation.get(group))
 
     def torque_vector(self) -> np.ndarray:
-        """Coefficients in ``TORQUE_TERM_NAMES`` order (absent terms are 0)."""
+        """Coefficients in ``TORQUE_TERM_NAMES`` order (absent terms are 0).
+
+        Returns
+        -------
+        numpy.ndarray
+            One coefficient per torque term.
+        """
         return np.array([self.torque.get(k, 0.0) for k in TORQUE_TERM_NAMES])
 
     def hysteresis_vector(self) -> np.ndarray:
-        """Coefficients in ``HYSTERESIS_TERM_NAMES`` order (absent terms are 0)."""
+        """Coefficients in ``HYSTERESIS_TERM_NAMES`` order (absent terms are 0).
+
+        Returns
+        -------
+        numpy.ndarray
+            One coefficient per hysteresis term.
+        """
         return np.array([self.hysteresis.get(k, 0.0) for k in HYSTERESIS_TERM_NAMES])
 
     @property
@@ -223,6 +248,19 @@ class TermModel:
 
     def term(self, name: str, theta, theta_dot, z, i) -> np.ndarray:
         """The values of torque term ``name`` (:data:`SHEAR_TERM` at this model's ``m``).
+
+        Parameters
+        ----------
+        name : str
+            A key of :data:`TORQUE_TERMS`.
+        theta, theta_dot, z, i : float or numpy.ndarray
+            Angle (or displacement), its rate, the hysteretic state and the current
+            (broadcast together).
+
+        Returns
+        -------
+        numpy.ndarray
+            The term's values (a current term sees :meth:`current`).
 
         Examples
         --------
@@ -237,7 +275,19 @@ class TermModel:
         return TORQUE_TERMS[name](theta, theta_dot, z, i)
 
     def eval_torque(self, theta, theta_dot, z, i) -> np.ndarray:
-        """Damper (plus spring) torque for arrays of states at current(s) ``i``."""
+        """Damper (plus spring) torque for arrays of states at current(s) ``i``.
+
+        Parameters
+        ----------
+        theta, theta_dot, z, i : float or numpy.ndarray
+            Angle (or displacement), its rate, the hysteretic state and the current
+            (broadcast together).
+
+        Returns
+        -------
+        numpy.ndarray
+            The sum of the torque terms times their coefficients.
+        """
         out = np.zeros(np.broadcast(theta, theta_dot, z, i).shape)
         for name, c in self.torque.items():
             if c != 0.0:
@@ -245,7 +295,18 @@ class TermModel:
         return out
 
     def eval_rate(self, theta_dot, z) -> np.ndarray:
-        """Hysteretic rate ``dz/dt``."""
+        """Hysteretic rate ``dz/dt``.
+
+        Parameters
+        ----------
+        theta_dot, z : float or numpy.ndarray
+            Velocity and hysteretic state (broadcast together).
+
+        Returns
+        -------
+        numpy.ndarray
+            The sum of the hysteresis terms times their coefficients.
+        """
         out = np.zeros(np.broadcast(theta_dot, z).shape)
         for name, c in self.hysteresis.items():
             if c != 0.0:
@@ -265,6 +326,16 @@ class TermModel:
 
     def equations(self, precision: int = 4) -> str:
         """pysindy-style two-line print of the model (a third line for a channel delay).
+
+        Parameters
+        ----------
+        precision : int, default 4
+            Significant digits of the coefficients.
+
+        Returns
+        -------
+        str
+            ``T = ...`` and ``dz/dt = ...``, one per line.
 
         Examples
         --------

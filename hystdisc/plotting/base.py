@@ -53,6 +53,8 @@ def fill_doc(func: F) -> F:
 
 
 def new_axes(nrows: int = 1, ncols: int = 1, **kw: Any) -> list[Axes]:
+    """A new figure's ``nrows`` x ``ncols`` axes, flattened (``figsize`` sizes the figure,
+    the rest of ``kw`` goes to ``Figure.subplots``)."""
     import matplotlib.pyplot as plt
 
     fig = plt.figure(figsize=kw.pop("figsize", None))

@@ -33,6 +33,7 @@ class ComparisonSections:
     :class:`~hystdisc.report.document.Document`)."""
 
     def families(self) -> None:
+        """The families section: the comparison table and figure."""
         from hystdisc.plotting import plot_family_comparison
 
         d = self.res
@@ -93,6 +94,7 @@ class ComparisonSections:
         self.figure(fig, "Left: output-error RMS (and held-out RMS); right: BIC above the best.")
 
     def parameters(self) -> None:
+        """The parameters section: each family's values with 95 % intervals."""
         d = self.res
         self.h2("parameters")
         self.p(
@@ -127,6 +129,7 @@ class ComparisonSections:
                 self.md += [f"- {md_line(n)}" for n in f.notes] + [""]
 
     def correspondence(self) -> None:
+        """The correspondence section: the families' parameters side by side."""
         d = self.res
         self.h2("correspondence")
         fams = d.families

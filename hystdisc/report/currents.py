@@ -9,6 +9,7 @@ class CurrentSections:
     """The ``current-laws`` section (a mixin of the report's :class:`Document`)."""
 
     def current_laws(self) -> None:
+        """The current-laws section: the staged fit's per-level values and chosen laws."""
         self.h2("current-laws")
         cl = self.res.current_laws
         if not cl:

@@ -62,31 +62,37 @@ class Document:
 
     # -- output helpers
     def h2(self, sid: str) -> None:
+        """Open the section ``sid`` (a key of ``SECTIONS``) with its heading."""
         title = dict(SECTIONS)[sid]
         self.html.append(f'<h2 id="{esc(sid)}">{esc(title)}</h2>')
         self.md += ["", f"## {title}", ""]
 
     def p(self, text: str, md: bool = True, cls: str | None = None) -> None:
+        """A paragraph (also in the Markdown summary unless ``md`` is False)."""
         c = f' class="{cls}"' if cls else ""
         self.html.append(f"<p{c}>{esc(text)}</p>")
         if md:
             self.md += [md_line(text), ""]
 
     def table(self, header, rows, left: int | set[int] = 1, sel=None, md: bool = True) -> None:
+        """A table: ``left`` columns left-aligned, row ``sel`` highlighted."""
         self.html.append(html_table(header, rows, left, sel))
         if md:
             self.md += [md_table(header, rows), ""]
 
     def figure(self, fig, caption: str | None = None) -> None:
+        """A figure as an embedded PNG, with an optional caption (HTML only)."""
         self.html.append(png(fig, self.dpi))
         if caption:
             self.html.append(f'<p class="note">{esc(caption)}</p>')
 
     def pre(self, text: str) -> None:
+        """Preformatted text."""
         self.html.append(f"<pre>{esc(text)}</pre>")
         self.md += ["```", text, "```", ""]
 
     def shown_note(self) -> str:
+        """A note when the figures show only some of the runs (empty otherwise)."""
         n = self.fd.n_runs
         if len(self.shown) >= n:
             return ""

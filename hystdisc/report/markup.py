@@ -60,10 +60,12 @@ nav a{margin-right:1em}code{font-size:.92em}
 
 
 def esc(x: Any) -> str:
+    """``x`` as HTML-escaped text."""
     return html.escape(str(x), quote=True)
 
 
 def num(x: Any, fmt: str = ".4g") -> str:
+    """A number formatted with ``fmt``; a dash for None, NaN or inf; other text as is."""
     if x is None:
         return "–"
     try:
@@ -76,6 +78,7 @@ def num(x: Any, fmt: str = ".4g") -> str:
 
 
 def ci_text(ci: Any, fmt: str = ".4g") -> str:
+    """An interval as ``[low, high]``; a dash when an end is missing."""
     if not ci or len(ci) != 2 or ci[0] is None or ci[1] is None:
         return "–"
     return f"[{num(ci[0], fmt)}, {num(ci[1], fmt)}]"
@@ -109,6 +112,7 @@ def html_table(
 
 
 def md_table(header: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
+    """A Markdown table."""
     lines = ["| " + " | ".join(md_cell(h) for h in header) + " |"]
     lines.append("|" + "|".join("---" for _ in header) + "|")
     lines += ["| " + " | ".join(md_cell(c) for c in row) + " |" for row in rows]
@@ -116,6 +120,7 @@ def md_table(header: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
 
 
 def new_figure(nrows: int, ncols: int, width: float, height: float, **kw: Any):
+    """A figure (not registered with pyplot) and its ``nrows`` x ``ncols`` axes."""
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=(width, height), layout="constrained")
@@ -149,10 +154,12 @@ def figure_legend(fig, ax) -> None:
 
 
 def md_line(text: str) -> str:
+    """``text`` on one line."""
     return " ".join(str(text).split())
 
 
 def currents_text(cs) -> str:
+    """The distinct currents of ``cs``, comma-separated."""
     from hystdisc.data import distinct_currents
 
     return ", ".join(f"{c:g}" for c in distinct_currents(cs))

@@ -23,6 +23,7 @@ class OverviewSections:
     :class:`~hystdisc.report.document.Document`)."""
 
     def summary(self) -> None:
+        """The summary section: the selected family, its fit and the verdict."""
         d, disc = self.res, self.disc
         self.h2("summary")
         sel = "declared" if d.declared else "selected"
@@ -68,6 +69,7 @@ class OverviewSections:
         self.pre(disc.equations())
 
     def data(self) -> None:
+        """The data section: the runs, their currents and the noise."""
         fd, ds = self.fd, self.ds
         self.h2("data")
         meas = ds.measured()
@@ -130,6 +132,7 @@ class OverviewSections:
         self.figure(fig)
 
     def time_series(self) -> None:
+        """The time-series section: measured and simulated output of the shown runs."""
         from hystdisc.plotting import plot_fit
 
         self.h2("time-series")
@@ -175,6 +178,7 @@ class OverviewSections:
         self.figure(fig)
 
     def loops(self) -> None:
+        """The loops section: torque against motion, measured and simulated."""
         from hystdisc.plotting import loops_figure
 
         self.h2("loops")

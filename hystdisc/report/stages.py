@@ -16,6 +16,7 @@ class StageSections:
     :class:`~hystdisc.report.document.Document`)."""
 
     def selection(self) -> None:
+        """The selection section: stage 1's threshold path and inclusion probabilities."""
         from hystdisc.plotting import plot_inclusion, plot_selection_path
 
         disc = self.disc
@@ -68,6 +69,7 @@ class StageSections:
             )
 
     def closing(self) -> None:
+        """The closing section: the effects tried and the residual's spectrum."""
         from hystdisc.plotting import plot_residual_spectrum
 
         d = self.res

@@ -150,7 +150,7 @@ class FamilyResult(Record):
     violations : list of str
         Where it does not (empty when admissible).
     missing_terms : list of str
-        Discovered terms the family lacks (``dz/dt: `` prefix for the hysteresis side).
+        Discovered terms the family lacks (prefix ``dz/dt:`` for the hysteresis side).
     extra_terms : list of str
         The family's terms that were not discovered.
     notes : list of str

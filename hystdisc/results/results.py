@@ -249,6 +249,18 @@ class Results(Record):
     def from_dict(cls, data: Any, where: str | None = None) -> Results:
         """Results from a ``results.json`` table of any known schema (floats rounded).
 
+        Parameters
+        ----------
+        data : dict
+            The parsed ``results.json`` table.
+        where : str, optional
+            Its name in error messages (default ``"results.json"``).
+
+        Returns
+        -------
+        Results
+            The typed record, migrated to :data:`SCHEMA_VERSION`.
+
         Raises
         ------
         SchemaError
@@ -261,20 +273,56 @@ class Results(Record):
         return super().from_dict(migrate(round_json(data)), where or "results.json")
 
     def summary(self) -> dict:
-        """The ``results.json`` contract as a plain dict."""
+        """The ``results.json`` contract as a plain dict.
+
+        Returns
+        -------
+        dict
+            The same as :meth:`to_dict`.
+        """
         return self.to_dict()
 
     def to_json(self) -> str:
-        """The ``results.json`` text (``indent=1``, a final newline)."""
+        """The ``results.json`` text (``indent=1``, a final newline).
+
+        Returns
+        -------
+        str
+            The JSON text.
+        """
         return json.dumps(self.to_dict(), indent=1, sort_keys=False) + "\n"
 
     @classmethod
     def from_json(cls, text: str) -> Results:
-        """Results from ``results.json`` text (see :meth:`load` for the checks)."""
+        """Results from ``results.json`` text (see :meth:`load` for the checks).
+
+        Parameters
+        ----------
+        text : str
+            The JSON text.
+
+        Returns
+        -------
+        Results
+            As :meth:`from_dict` gives it.
+        """
         return cls.from_dict(json.loads(text))
 
     def save(self, path: str | Path, force: bool = False) -> Path:
-        """Write ``results.json`` atomically (refuses to overwrite without ``force``)."""
+        """Write ``results.json`` atomically (refuses to overwrite without ``force``).
+
+        Parameters
+        ----------
+        path : str or pathlib.Path
+            The file to write.
+        force : bool, default False
+            Replace an existing file.
+
+        Returns
+        -------
+        pathlib.Path
+            The path written.
+        """
         from hystdisc.data import atomic_write_text
 
         return atomic_write_text(path, self.to_json(), force=force)
@@ -282,7 +330,18 @@ class Results(Record):
     @classmethod
     def load(cls, path: str | Path) -> Results:
         """Read a ``results.json`` of any known schema; a malformed file is a one-line
-        HystdiscError."""
+        HystdiscError.
+
+        Parameters
+        ----------
+        path : str or pathlib.Path
+            The file to read.
+
+        Returns
+        -------
+        Results
+            The typed record, migrated to :data:`SCHEMA_VERSION`.
+        """
         p = Path(path)
         try:
             data = json.loads(p.read_text(encoding="utf-8"))
@@ -319,6 +378,16 @@ class Results(Record):
     def term_model(self, family: str | None = None) -> TermModel:
         """The fitted model in term form (final model with effects, or one family's fit).
 
+        Parameters
+        ----------
+        family : str, optional
+            A compared family; without it, the final model (selected family and effects).
+
+        Returns
+        -------
+        TermModel
+            The model as ``hystdisc predict`` simulates it.
+
         Raises
         ------
         HystdiscError
@@ -336,6 +405,16 @@ class Results(Record):
         """The fitted model as the simulator takes it: the term form, or a system
         family's state-space model with its parameter values (final model with effects,
         or one family's fit).
+
+        Parameters
+        ----------
+        family : str, optional
+            A compared family; without it, the final model (selected family and effects).
+
+        Returns
+        -------
+        TermModel or tuple of (StateSpaceModel, dict of str to float)
+            The term form, or the system with its parameter values.
 
         Raises
         ------
@@ -382,23 +461,58 @@ class Results(Record):
 
     # ----------------------------------------------------------------- text
     def family_table(self) -> str:
-        """Fixed-width table of every family's fit (``*``: selected)."""
+        """Fixed-width table of every family's fit (``*``: selected).
+
+        Returns
+        -------
+        str
+            One line per family: parameters, RMS, RMS/noise, BIC, held-out RMS.
+        """
         return text.family_table(self)
 
     def parameter_table(self, family: str | None = None) -> str:
-        """Parameters of a family (default: the selected one) with 95 % intervals."""
+        """Parameters of a family (default: the selected one) with 95 % intervals.
+
+        Parameters
+        ----------
+        family : str, optional
+            The family (default: the selected one).
+
+        Returns
+        -------
+        str
+            The fixed-width table, one parameter a line.
+        """
         return text.parameter_table(self, family)
 
     def effects_table(self) -> list[str]:
-        """Lines of the closing-the-loop table (empty when the loop did not run)."""
+        """Lines of the closing-the-loop table (empty when the loop did not run).
+
+        Returns
+        -------
+        list of str
+            The table's lines.
+        """
         return text.effects_table(self)
 
     def measurement_lines(self) -> list[str]:
-        """How the noise was estimated and the encoder of a quantized angle, one line each."""
+        """How the noise was estimated and the encoder of a quantized angle, one line each.
+
+        Returns
+        -------
+        list of str
+            The lines.
+        """
         return text.measurement_lines(self)
 
     def report(self) -> str:
-        """A readable fit report: discovered equations, family table, parameters, effects."""
+        """A readable fit report: discovered equations, family table, parameters, effects.
+
+        Returns
+        -------
+        str
+            The report (what ``hystdisc discover`` prints).
+        """
         return text.report(self)
 
     def __str__(self) -> str:

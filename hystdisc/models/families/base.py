@@ -168,9 +168,12 @@ class Family:
         return "\n".join(lines)
 
     def to_terms(self, p: Mapping[str, float]) -> TermModel:  # pragma: no cover - abstract
+        """The term form of the family at parameter values ``p`` (by name)."""
         raise NotImplementedError
 
     def from_terms(self, tm: TermModel) -> dict[str, float]:  # pragma: no cover - abstract
+        """The parameter values of a term model of this structure (undoes :meth:`to_terms`,
+        the normalization of the state's scale included)."""
         raise NotImplementedError
 
     def term_starts(self, tm: TermModel) -> list[dict[str, float]]:
@@ -181,6 +184,7 @@ class Family:
         return [self.from_terms(tm)]
 
     def equations(self) -> str:  # pragma: no cover - abstract
+        """The family's equations in its parameters' names, one per line."""
         raise NotImplementedError
 
     #: False: the family is a term model (:meth:`to_terms`); True: a state-space system

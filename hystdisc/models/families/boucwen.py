@@ -26,7 +26,7 @@ _PARAMS = """
 
 
 class BoucWen(Family):
-    """Bouc-Wen in the seed's printed form: dz = -gamma|w| z|z|^n - beta w |z|^n + delta w."""
+    """Bouc-Wen in the seed's printed form: ``dz = -gamma|w| z|z|^n - beta w |z|^n + delta w``."""
 
     name = "bouc-wen"
     title = "Bouc-Wen (seed form)"
@@ -39,7 +39,7 @@ class BoucWen(Family):
     linear_torque = {"z": "alpha_1", "i*z": "alpha_2", "theta_dot": "c_1", "i*theta_dot": "c_2"}
     hysteresis_terms = ("theta_dot", "theta_dot*|z|^n", "|theta_dot|*z*|z|^n")
     _gamma_term = "|theta_dot|*z*|z|^n"
-    #: Degree of z in the gamma term beyond |z|^n (seed form: z|z|^n, one more).
+    #: Degree of z in the gamma term beyond ``|z|^n`` (seed form: z|z|^n, one more).
     gamma_extra_degree = 1
     #: The exponent at which the gamma term is Dahl's ``|theta_dot|*z`` (seed form: n -> 0,
     #: its lower bound).
@@ -136,7 +136,7 @@ class BoucWen(Family):
 
 
 class BoucWenStd(BoucWen):
-    """Standard Bouc-Wen: dz = delta w - beta w |z|^n - gamma |w| z |z|^(n-1)."""
+    """Standard Bouc-Wen: ``dz = delta w - beta w |z|^n - gamma |w| z |z|^(n-1)``."""
 
     name = "bouc-wen-std"
     title = "Bouc-Wen (standard form)"

@@ -122,7 +122,7 @@ _PARAMS = """
 
 #: Ratios c1 / c0 of the starts from a Bouc-Wen fit; 13.5 is Spencer et al.'s (283/21).
 START_RATIOS = (3.0, 13.5, 60.0)
-#: A Bouc-Wen shape with |beta| or |gamma| above this many times ``A = beta + gamma`` is a
+#: A Bouc-Wen shape with ``|beta|`` or ``|gamma|`` above this many times ``A = beta + gamma`` is a
 #: sharp reversal: Spencer is also started from the symmetric shape.
 SHARP_SHAPE = 10.0
 

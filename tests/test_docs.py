@@ -1,0 +1,191 @@
+"""The documentation: the Sphinx site builds with warnings as errors, and the docstrings.
+
+The site (``doc/``) is built once, from a copy of ``doc/``, ``README.md`` and
+``notebooks/`` in a temporary folder (the build writes generated pages beside its
+sources), with the package of this tree. Nothing is executed: the notebooks are rendered
+without outputs. The build takes about 35 s of CPU.
+
+The docstring rules of ``doc/develop.rst`` ("Style"): every public module, function,
+class and method has a docstring, and the names :mod:`hystdisc` exports document their
+parameters and what they return in numpydoc sections (numpydoc's own validator).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib
+import inspect
+import os
+import pkgutil
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import hystdisc
+
+ROOT = Path(__file__).resolve().parents[1]
+
+#: Every module of the package (``__main__`` runs the command line when imported).
+MODULES = sorted(
+    ["hystdisc"]
+    + [
+        m.name
+        for m in pkgutil.walk_packages(hystdisc.__path__, "hystdisc.")
+        if not m.name.split(".")[-1].startswith("_")
+    ]
+)
+
+
+def _copy_sources(dest: Path) -> Path:
+    """Copy what the build reads into ``dest``; return the copy of ``doc/``."""
+    ignore = shutil.ignore_patterns("_build", "generated", "gallery", "__pycache__")
+    shutil.copytree(ROOT / "doc", dest / "doc", ignore=ignore)
+    shutil.copytree(ROOT / "notebooks", dest / "notebooks", ignore=ignore)
+    shutil.copy2(ROOT / "README.md", dest / "README.md")
+    return dest / "doc"
+
+
+@pytest.fixture(scope="module")
+def site(tmp_path_factory):
+    """Build the HTML site with ``-W --keep-going``; the output folder and the log."""
+    for name in ("sphinx", "numpydoc", "myst_nb", "jupytext"):
+        pytest.importorskip(name, reason=f"{name} builds the docs: pip install -e '.[docs]'")
+    tmp = tmp_path_factory.mktemp("docs")
+    src = _copy_sources(tmp / "src")
+    out = tmp / "html"
+    env = dict(
+        os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])
+    )
+    cmd = [sys.executable, "-m", "sphinx", "-W", "--keep-going", "-q", "-b", "html"]
+    cmd += ["-d", str(tmp / "doctrees"), str(src), str(out)]
+    proc = subprocess.run(cmd, cwd=tmp, env=env, capture_output=True, text=True, timeout=600)
+    return out, proc
+
+
+def test_the_site_builds_without_warnings(site):
+    out, proc = site
+    assert proc.returncode == 0, f"sphinx-build failed:\n{proc.stderr[-6000:]}"
+    assert "WARNING" not in proc.stderr and "ERROR" not in proc.stderr, proc.stderr[-6000:]
+    for page in ("index", "quickstart", "schema", "errors", "api", "design", "develop"):
+        assert (out / f"{page}.html").is_file(), f"{page}.html missing"
+
+
+def test_every_module_has_an_api_page(site):
+    out, _ = site
+    missing = [m for m in MODULES if not (out / "api" / "generated" / f"{m}.html").is_file()]
+    assert not missing, f"modules without an API page: {missing}"
+    page = (out / "api" / "generated" / "hystdisc.estimator.html").read_text(encoding="utf-8")
+    assert 'id="hystdisc.estimator.Discovery.fit"' in page  # methods are documented
+    # a name documented where it is defined, and the package's re-export links to it
+    root = (out / "api" / "generated" / "hystdisc.html").read_text(encoding="utf-8")
+    assert 'href="hystdisc.estimator.html#hystdisc.estimator.Discovery"' in root
+
+
+def test_every_notebook_is_in_the_gallery(site):
+    out, _ = site
+    index = (out / "gallery" / "index.html").read_text(encoding="utf-8")
+    for script in sorted((ROOT / "notebooks").glob("*.py")):
+        page = out / "gallery" / f"{script.stem}.html"
+        assert page.is_file(), f"{script.name} is not rendered"
+        assert f'href="{script.stem}.html"' in index
+        lines = script.read_text(encoding="utf-8").splitlines()
+        title = next(line for line in lines if line.startswith("# # "))[4:]
+        assert title.split(":")[0] in page.read_text(encoding="utf-8")
+
+
+def test_the_schema_page_lists_every_key(site):
+    from hystdisc.results import SCHEMA_VERSION, Results
+    from hystdisc.results.records import FamilyResult, ParameterResult
+
+    out, _ = site
+    page = (out / "schema.html").read_text(encoding="utf-8")
+    assert f"This is schema {SCHEMA_VERSION}" in page
+    for cls in (Results, FamilyResult, ParameterResult):
+        for f in dataclasses.fields(cls):
+            if f.name != "extra":
+                assert f'<span class="pre">{f.name}</span>' in page, f"{cls.__name__}.{f.name}"
+
+
+def test_the_errors_page_lists_every_error_and_warning_class(site):
+    out, _ = site
+    page = (out / "errors.html").read_text(encoding="utf-8")
+    for name in ("HystdiscError", "HystdiscWarning", "ImplausibleUnitsWarning", "SchemaError"):
+        assert name in page
+    assert "re-save the file as UTF-8" in page  # a row of the README's table
+
+
+# -- docstrings ---------------------------------------------------------------------------
+def _public_objects():
+    """``(name, object)`` of every public function, class and method of the package."""
+    for modname in MODULES:
+        mod = importlib.import_module(modname)
+        yield modname, mod
+        for name, obj in vars(mod).items():
+            if name.startswith("_") or getattr(obj, "__module__", None) != modname:
+                continue
+            if not (inspect.isfunction(obj) or inspect.isclass(obj)):
+                continue
+            yield f"{modname}.{name}", obj
+            if inspect.isclass(obj):
+                for attr, member in vars(obj).items():
+                    if attr.startswith("_"):
+                        continue
+                    if isinstance(member, (staticmethod, classmethod)):
+                        member = member.__func__
+                    if inspect.isfunction(member) or isinstance(member, property):
+                        # looked up through the class: an override inherits its docstring
+                        yield f"{modname}.{name}.{attr}", getattr(obj, attr, member)
+
+
+def test_every_public_object_has_a_docstring():
+    missing = [name for name, obj in _public_objects() if not (inspect.getdoc(obj) or "").strip()]
+    assert not missing, f"{len(missing)} public objects without a docstring: {missing}"
+
+
+def _exported():
+    """The canonical names of what :mod:`hystdisc` exports, and their public methods."""
+    for name in hystdisc.__all__:
+        if name.startswith("_"):
+            continue
+        obj = getattr(hystdisc, name)
+        canonical = f"{obj.__module__}.{obj.__qualname__}"
+        yield canonical, obj
+        if inspect.isclass(obj):
+            for attr, member in vars(obj).items():
+                if attr.startswith("_"):
+                    continue
+                if isinstance(member, (staticmethod, classmethod)):
+                    member = member.__func__
+                if inspect.isfunction(member) or isinstance(member, property):
+                    yield f"{canonical}.{attr}", member
+
+
+#: Exported methods still without their numpydoc sections: ``estimator.py`` is at the
+#: 900-line limit of doc/develop.rst (their sections need about 30 lines); document them
+#: when the module is split. The test fails when one of them is fixed (remove it here).
+KNOWN_GAPS = {
+    "hystdisc.estimator.Discovery.predict",
+    "hystdisc.estimator.Discovery.score",
+    "hystdisc.estimator.Discovery.equations",
+    "hystdisc.estimator.Discovery.print",
+}
+
+
+def test_the_exported_names_document_parameters_and_returns():
+    validate = pytest.importorskip("numpydoc.validate").validate
+    # GL08: no docstring; PR01/PR02: a parameter undocumented / documented but absent;
+    # RT01: a function that returns something has no Returns section
+    codes = {"GL08", "PR01", "PR02", "RT01"}
+    bad = {}
+    for name, obj in _exported():
+        errors = {code: msg for code, msg in validate(name)["errors"] if code in codes}
+        if dataclasses.is_dataclass(obj):
+            errors.pop("PR01", None)  # a record's fields are its Attributes (schema page)
+        if errors and name not in KNOWN_GAPS:
+            bad[name] = errors
+        if not errors and name in KNOWN_GAPS:
+            bad[name] = "documented now: remove it from KNOWN_GAPS"
+    assert not bad, "\n".join(f"{k}: {v}" for k, v in bad.items())
