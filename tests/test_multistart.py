@@ -20,6 +20,7 @@ from hystdisc.fitting import FamilyParametrization
 from hystdisc.fitting.multistart import (
     best_of_starts,
     mapped_start,
+    mapped_starts,
     nesting_pass,
     random_starts,
     start_rss,
@@ -63,6 +64,19 @@ def test_a_family_never_ends_worse_than_a_model_it_contains():
     assert out["lugre"].rss <= dahl.rss * (1 + 1e-6)
     assert out["lugre"].extra["nested_from"] == "dahl"
     assert any("refitted from the optimum of dahl" in n for n in out["lugre"].notes)
+
+
+@pytest.mark.parametrize("family", ["bouc-wen", "bouc-wen-std"])
+def test_dahl_maps_into_bouc_wen_where_its_exponent_makes_the_gamma_term_dahls(family):
+    # seed form: |w| z |z|^n at n -> 0 (the lower bound); standard form: |w| z |z|^(n-1)
+    # at n = 1; either way Bouc-Wen reproduces Dahl's optimum from that start
+    d = _dahl_fit()
+    fd, dahl = d.fit_data_, d.family_fits_["dahl"]
+    (start,) = mapped_starts(family, dahl)
+    assert start["n"] == (1e-4 if family == "bouc-wen" else 1.0)
+    assert start["gamma"] > 0 and start["beta"] == 0
+    par = FamilyParametrization(family, "release", start)
+    assert abs(start_rss(fd, par, dahl.nuisance) / dahl.rss - 1.0) < 1e-3
 
 
 def test_best_of_starts_keeps_the_best_basin_and_says_how_many_reached_it():
