@@ -81,7 +81,7 @@ class DesignResult:
 
     @property
     def relative_before(self) -> dict[str, float]:
-        """Relative width (width / |value|) of each interval now."""
+        """Relative width (width divided by the absolute value) of each interval now."""
         return _relative(self.widths_before, self.values)
 
     @property

@@ -8,10 +8,10 @@ passes the same angle again, repeats its error. Least-squares intervals that cou
 sample as independent are then too narrow (and an effect's Wald test too confident).
 
 With the encoder's zero at an unknown phase relative to the true output, the error has
-the covariance ``(q^2 / 12) rho(y_t - y_s)`` where the sawtooth's autocorrelation is
+the covariance ``(q^2 / 12) rho(y_t - y_s)`` where the sawtooth's autocorrelation is ::
 
-    rho(d) = 1 - 6 u + 6 u^2,  u = frac(|d| / q)
-           = (6 / pi^2) sum_k cos(2 pi k d / q) / k^2.
+    rho(d) = 1 - 6 u + 6 u^2,  u = frac(abs(d) / q)
+           = (6 / pi^2) sum_k cos(2 pi k d / q) / k^2
 
 The information matrix ``J' R J`` (``R_ts = rho(y_t - y_s)``) is then a sum of rank-two
 terms ``Re(c_k c_k^H)`` with ``c_k = J' exp(2 pi i k y / q)`` (:func:`quantization_information`,

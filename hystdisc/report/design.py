@@ -20,6 +20,7 @@ class DesignSections:
     design: DesignResult | str | None = None
 
     def what_to_test_next(self) -> None:
+        """The "What to test next" section: the suggested runs and the expected widths."""
         self.h2("what-to-test-next")
         plan = self.design
         if plan is None:
