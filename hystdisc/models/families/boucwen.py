@@ -111,7 +111,11 @@ class BoucWen(Family):
         [1.0, 2.0]
         """
         other = next(
-            (k for k in ("|theta_dot|*z*|z|^n", "|theta_dot|*z*|z|^(n-1)") if k != self._gamma_term),
+            (
+                k
+                for k in ("|theta_dot|*z*|z|^n", "|theta_dot|*z*|z|^(n-1)")
+                if k != self._gamma_term
+            ),
         )
         if self._gamma_term in tm.hysteresis or not tm.hysteresis.get(other):
             return [self.from_terms(tm)]
