@@ -85,6 +85,7 @@ from hystdisc.fitting import (
     staged_fit,
 )
 from hystdisc.fitting.multistart import best_of_starts, nesting_pass, random_starts
+from hystdisc.fitting.staged import levels_start
 from hystdisc.models import FAMILIES, format_equation, get_family
 from hystdisc.registry import experiment_names, family_names, get_experiment
 from hystdisc.results import build_results
@@ -682,6 +683,8 @@ class Discovery(BaseEstimator):
                     name, eq.experiment, start, fixed=family_fixed(name), normalization=norm
                 )
                 pars.append((label, par))
+            if (lv := levels_start(fd, first.par, first.params)) is not None:
+                pars.append(("current levels", first.par.like(lv, first.par.effects)))
             return best_of_starts(
                 fd,
                 pars,

@@ -446,3 +446,44 @@ def predict_runs(fit: OEFit, fd: FitData) -> list[np.ndarray]:
     nu = fd.nuisance_start(fit.par.has_state()).reshape(fd.n_runs, -1)
     runs = list(range(fd.n_runs))
     return fit.par.simulate(fd, [fit.par.model(fit.x)] * fd.n_runs, runs, list(nu))
+
+
+def levels_start(
+    fd: FitData, par: FamilyParametrization, start: Mapping[str, float], max_nfev: int = 20
+) -> dict[str, float] | None:
+    """A start for the joint fit from the current levels fitted one by one.
+
+    A joint fit can trade one current-dependent parameter against another (a viscous
+    slope against a friction slope) and stop in that basin; at one level there is no
+    slope to trade. The family is fitted at each level (:func:`level_fits`, the shape held
+    at ``start``), a straight line through each law's per-level values (weighted by their
+    intervals) gives its passive value and slope. None with fewer than two levels.
+
+    Parameters
+    ----------
+    fd : FitData
+        The runs (at two current levels or more).
+    par : FamilyParametrization
+        The family's parametrization (its fixed parameters are kept).
+    start : mapping
+        Where the lowest level starts, and the shape held at every level.
+    max_nfev : int
+        Iterations of each level's fit.
+
+    Returns
+    -------
+    dict or None
+        ``start`` with each law's passive parameter and slope replaced.
+    """
+    levels = level_fits(fd, par, start, max_nfev)
+    if len(levels) < 2:
+        return None
+    out = dict(start)
+    i = [lv.current for lv in levels]
+    for passive, slope in par.family.current_laws.values():
+        if passive not in levels[0].fit.par.names or slope in par.fixed:
+            continue
+        v = [lv.fit.params[passive] for lv in levels]
+        line = fit_law("linear", i, v, floored_se(v, [lv.fit.stderr[passive] for lv in levels]))
+        out[passive], out[slope] = line["a"], line["b"]
+    return out
