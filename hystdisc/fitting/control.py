@@ -51,7 +51,7 @@ from hystdisc.data import Dataset, estimate_noise, filter_windows
 from hystdisc.discovery.differentiation import differentiate
 from hystdisc.errors import HystdiscError
 from hystdisc.fitting.measurement import unfiltered_motion
-from hystdisc.models import TermModel
+from hystdisc.models import Model, TermModel
 from hystdisc.models.system import FamilySystem, StateSpaceModel, TermSystem
 from hystdisc.models.wheel import RIG_TERMS
 from hystdisc.registry import get_experiment
@@ -154,7 +154,7 @@ class _Packed:
 
 
 def to_control(
-    model: TermModel | tuple[StateSpaceModel, Mapping[str, float]],
+    model: TermModel | tuple[StateSpaceModel, Mapping[str, float]] | Model,
     experiment: str = "driven",
     name: str = "damper",
 ) -> Any:
@@ -162,9 +162,10 @@ def to_control(
 
     Parameters
     ----------
-    model : TermModel or (StateSpaceModel, dict)
-        The fitted model (:meth:`hystdisc.results.Results.simulation_model`; a
-        ``Model(...).to_terms()`` for a known damper).
+    model : TermModel, (StateSpaceModel, dict) or Model
+        The fitted model (:meth:`hystdisc.results.Results.simulation_model`), or a known
+        damper (a :class:`~hystdisc.models.Model`, as the simulator runs it in
+        ``experiment``).
     experiment : str
         The experiment the model was fitted on (see :func:`damper_model`).
     name : str
@@ -199,6 +200,8 @@ def to_control(
     True
     """
     ct = _control()
+    if isinstance(model, Model):  # a known damper: what the simulator runs for experiment
+        model = model.system(experiment) if model.family.is_system else model.to_terms()
     system, values = damper_model(model, experiment)
     packed = _Packed(system, values)
     rate, observe, n = system.rate, system.observe, len(system.states)
@@ -214,13 +217,14 @@ def to_control(
         )
         return np.array([y])
 
+    states = {"states": list(system.states)} if n else {}  # none: a static damper (tanh)
     return ct.nlsys(
         updfcn if n else None,
         outfcn,
         inputs=list(INPUTS),
         outputs=[OUTPUT],
-        states=list(system.states),
         name=name,
+        **states,
     )
 
 
@@ -253,3 +257,112 @@ def driven_inputs(dataset: Dataset) -> list[tuple[np.ndarray, np.ndarray]]:
         current = np.full(r.t.size, float(r.current))
         out.append((np.asarray(r.t, dtype=float), np.vstack([theta, theta_dot, current])))
     return out
+
+
+def sas_rig(
+    k_s: float = 158.0, m_w: float = 0.2, k_w: float = 5000.0, c_w: float = 5.0, name: str = "rig"
+) -> Any:
+    """The SAS rig's beam on a compliant wheel, driven by the road, as a control system.
+
+    The rig of :class:`~hystdisc.models.wheel.BeamOnCompliantWheel` (per unit beam
+    inertia: the damper's torque per unit inertia, as a release fit gives it) with the
+    ground under the wheel moving (``road``)::
+
+        theta_b''  = -k_s theta_b - T
+        m_w y''    = T - k_w (y - road) - c_w (y' - road_dot)
+
+    Parameters
+    ----------
+    k_s : float
+        The beam's spring (the rig's ``k_s``).
+    m_w, k_w, c_w : float
+        The wheel's inertia, stiffness and damping (``series_compliance``'s defaults).
+    name : str
+        The system's name.
+
+    Returns
+    -------
+    control.NonlinearIOSystem
+        Inputs ``torque`` (the damper's), ``road``, ``road_dot``; states ``beam,
+        beam_dot, wheel, wheel_dot``; outputs ``theta, theta_dot`` (the motion across the
+        damper, the damper's inputs), ``beam, beam_dot, beam_ddot`` and ``wheel``.
+
+    Examples
+    --------
+    >>> rig = sas_rig()
+    >>> rig.output(0.0, [0.3, 0.0, 0.1, 0.0], [0.0, 0.0, 0.0])[:3].tolist()
+    [0.19999999999999998, 0.0, 0.3]
+    """
+    ct = _control()
+
+    def updfcn(t, x, u, params):
+        th, w, y, v = x
+        T, r, rd = u
+        return np.array([w, -k_s * th - T, v, (T - k_w * (y - r) - c_w * (v - rd)) / m_w])
+
+    def outfcn(t, x, u, params):
+        th, w, y, v = x
+        return np.array([th - y, w - v, th, w, -k_s * th - u[0], y])
+
+    return ct.nlsys(
+        updfcn,
+        outfcn,
+        inputs=["torque", "road", "road_dot"],
+        states=["beam", "beam_dot", "wheel", "wheel_dot"],
+        outputs=["theta", "theta_dot", "beam", "beam_dot", "beam_ddot", "wheel"],
+        name=name,
+    )
+
+
+def skyhook(i_max: float = 1.0, i_min: float = 0.0, name: str = "skyhook") -> Any:
+    """The on-off skyhook law as a static control system: the current is ``i_max`` when
+    the beam's absolute velocity and the velocity across the damper have the same sign
+    (the damper's force then opposes the beam's motion), else ``i_min``.
+
+    Returns
+    -------
+    control.NonlinearIOSystem
+        Inputs ``beam_dot, theta_dot``, output ``current``.
+
+    Examples
+    --------
+    >>> law = skyhook(i_max=1.0)
+    >>> float(law.output(0.0, [], [0.5, 0.2])[0]), float(law.output(0.0, [], [0.5, -0.2])[0])
+    (1.0, 0.0)
+    """
+    ct = _control()
+
+    def outfcn(t, x, u, params):
+        return np.array([i_max if u[0] * u[1] > 0.0 else i_min])
+
+    return ct.nlsys(None, outfcn, inputs=["beam_dot", "theta_dot"], outputs=["current"], name=name)
+
+
+def closed_loop(damper: Any, rig: Any, controller: Any, name: str = "loop") -> Any:
+    """The damper, the rig and the controller connected by their signal names.
+
+    Returns
+    -------
+    control.InterconnectedSystem
+        Inputs ``road, road_dot``; outputs ``beam, beam_dot, beam_ddot, wheel,
+        theta_dot, current, torque``; the states of the three.
+
+    Examples
+    --------
+    >>> from hystdisc.models import Model
+    >>> loop = closed_loop(to_control(Model("bouc-wen").to_terms(), "release"), sas_rig(),
+    ...                    skyhook())
+    >>> loop.input_labels, loop.nstates
+    (['road', 'road_dot'], 5)
+    """
+    ct = _control()
+    outputs = ["beam", "beam_dot", "beam_ddot", "wheel", "theta_dot", "current", "torque"]
+    inputs = ["road", "road_dot"]
+    return ct.interconnect(
+        [damper, rig, controller],
+        inplist=inputs,
+        outlist=outputs,
+        inputs=inputs,
+        outputs=outputs,
+        name=name,
+    )
