@@ -5,7 +5,8 @@ into and returns the :class:`~matplotlib.figure.Figure`; without one it opens a 
 figure. Nothing here calls ``plt.show()`` or changes ``rcParams``. One module per kind of
 figure: :mod:`~hystdisc.plotting.loops`, :mod:`~hystdisc.plotting.fits`,
 :mod:`~hystdisc.plotting.selection`, :mod:`~hystdisc.plotting.spectrum`,
-:mod:`~hystdisc.plotting.families`, :mod:`~hystdisc.plotting.currents`.
+:mod:`~hystdisc.plotting.families`, :mod:`~hystdisc.plotting.currents`,
+:mod:`~hystdisc.plotting.control`.
 
 Examples
 --------
@@ -19,6 +20,7 @@ Examples
 >>> import matplotlib.pyplot as plt; plt.close(fig)
 """
 
+from hystdisc.plotting.control import plot_closed_loop
 from hystdisc.plotting.currents import plot_current_laws
 from hystdisc.plotting.families import plot_family_comparison
 from hystdisc.plotting.fits import plot_fit, plot_runs
@@ -29,6 +31,7 @@ from hystdisc.plotting.studies import plot_study
 
 __all__ = [
     "loops_figure",
+    "plot_closed_loop",
     "plot_current_laws",
     "plot_family_comparison",
     "plot_fit",

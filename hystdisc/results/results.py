@@ -449,6 +449,24 @@ class Results(Record):
             raise _no_model(family, exc) from None
         return system, values
 
+    def to_control(self, family: str | None = None, name: str = "damper") -> Any:
+        """The fitted damper as a ``control.NonlinearIOSystem`` (python-control).
+
+        Inputs ``theta, theta_dot, current`` (the motion across the damper and the coil
+        current), output ``torque``, the model's own states; the rig, the measurement
+        chain and the rig's structure are not part of it
+        (:func:`hystdisc.fitting.control.to_control`). ``family``: a family's own fit
+        instead of the final model.
+
+        Raises
+        ------
+        HystdiscError
+            When there is no such fit, it is not exportable, or python-control is absent.
+        """
+        from hystdisc.fitting.control import to_control
+
+        return to_control(self.simulation_model(family), self.experiment or "driven", name)
+
     @property
     def selected(self) -> FamilyResult:
         """The fit of the selected (or declared) family."""
