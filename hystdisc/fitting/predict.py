@@ -44,6 +44,12 @@ def beyond_envelope(envelope: dict | None, dataset: Dataset, unit: str = "rad") 
     return env.beyond(new, unit=unit)
 
 
+#: Tolerances of a prediction's error-controlled integration (one simulation: accuracy
+#: first; python-control's export integrates to the same, ``fitting/control.py``).
+PREDICT_RTOL = 1e-11
+PREDICT_ATOL = 1e-13
+
+
 def _predict_system(model, runs, ders, exp) -> list[np.ndarray]:
     """:func:`predict_dataset` for a state-space model with its values (a system family):
     driven runs follow their imposed motion, release and forced runs start from the first
@@ -58,7 +64,17 @@ def _predict_system(model, runs, ders, exp) -> list[np.ndarray]:
                 theta=d.theta[0], theta_dot=0.0 if exp.starts_at_rest else d.theta_dot[0]
             )
             inputs = {"u": np.asarray(r.input, dtype=float)} if exp.has_input else {}
-        out.append(simulate_system(system, r.t, x0, values, current=r.current, inputs=inputs).y)
+        y = simulate_system(
+            system,
+            r.t,
+            x0,
+            values,
+            current=r.current,
+            inputs=inputs,
+            rtol=PREDICT_RTOL,
+            atol=PREDICT_ATOL,
+        ).y
+        out.append(y)
     return out
 
 

@@ -455,8 +455,19 @@ class Results(Record):
         Inputs ``theta, theta_dot, current`` (the motion across the damper and the coil
         current), output ``torque``, the model's own states; the rig, the measurement
         chain and the rig's structure are not part of it
-        (:func:`hystdisc.fitting.control.to_control`). ``family``: a family's own fit
-        instead of the final model.
+        (:func:`hystdisc.fitting.control.to_control`).
+
+        Parameters
+        ----------
+        family : str, optional
+            A family's own fit instead of the final model.
+        name : str
+            The system's name in python-control (e.g. for ``interconnect``).
+
+        Returns
+        -------
+        control.NonlinearIOSystem
+            The damper: inputs ``theta, theta_dot, current``, output ``torque``.
 
         Raises
         ------
