@@ -716,6 +716,9 @@ class Discovery(BaseEstimator):
 
         fits = self._map(family_fit, list(range(len(fams) + (0 if same else 1))))
         self.family_fits_: dict[str, OEFit] = dict(zip(fams, fits, strict=False))
+        nest = len(fams) > 1  # no family ends worse than a model it contains
+        if nest:
+            self.family_fits_ = nesting_pass(fd, self.family_fits_, self.max_nfev, say)
         # a family still above the noise and near the best one is fitted from more starts
         top = min((f.rms for f in self.family_fits_.values()), default=np.inf)
         good = NOISE_RATIO * fd.noise_std
@@ -735,7 +738,7 @@ class Discovery(BaseEstimator):
             if more:
                 refits = self._map(more_starts, more)
                 self.family_fits_.update(zip(more, refits, strict=True))
-        if len(fams) > 1:  # no family ends worse than a model it contains
+        if nest and more:
             self.family_fits_ = nesting_pass(fd, self.family_fits_, self.max_nfev, say)
         self.family_fits_ = dict(zip(fams, self._map(with_heldout, fams), strict=True))
         self.discovered_fit_ = self.family_fits_[same[0]] if same else fits[-1]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping
 
 from hystdisc.errors import HystdiscError
@@ -13,6 +14,10 @@ CURRENT_LAWS = ("linear", "quadratic", "saturating")
 #: The suffix of the extra coefficient of a law that is not linear: ``<law>_i2`` (per A^2)
 #: or ``<law>_i0`` (the saturation current, A).
 LAW_SUFFIX = {"quadratic": "_i2", "saturating": "_i0"}
+
+
+#: Bouc-Wen gamma terms that are Dahl's ``|theta_dot|*z`` at some exponent.
+DAHL_LIKE = ("|theta_dot|*z*|z|^(n-1)", "|theta_dot|*z*|z|^n")
 
 
 class Family:
@@ -179,9 +184,30 @@ class Family:
     def term_starts(self, tm: TermModel) -> list[dict[str, float]]:
         """Parameter sets of this family near another model's term form ``tm``: starts for
         a fit from that model's optimum (a family that only approximately contains it may
-        offer several readings). The default is the one exact reading,
-        :meth:`from_terms`."""
-        return [self.from_terms(tm)]
+        offer several readings). The default is :meth:`from_terms`; a Dahl-type state
+        (``|theta_dot|*z``) also reads a Bouc-Wen gamma term as its own (exact at the
+        exponent where the term is ``|theta_dot|*z``, else a start near it), with the
+        beta term dropped.
+
+        Examples
+        --------
+        >>> from hystdisc.registry import get_family
+        >>> bw = get_family("bouc-wen-std").to_terms({"alpha_1": 1, "alpha_2": 2, "c_1": 0.5,
+        ...     "c_2": 0, "beta": 0, "gamma": 15, "delta": 15, "n": 1})
+        >>> get_family("dahl").term_starts(bw)[-1]
+        {'k_x': 0.5, 'k_wa': 1.0, 'k_wb': 2.0, 'rho': 15.0}
+        """
+        out = [self.from_terms(tm)]
+        gamma = [k for k in DAHL_LIKE if k in tm.hysteresis]
+        if (
+            "|theta_dot|*z" in self.hysteresis_terms
+            and "|theta_dot|*z" not in tm.hysteresis
+            and gamma
+        ):
+            hyst = {"theta_dot": tm.hysteresis.get("theta_dot", 0.0)}
+            hyst["|theta_dot|*z"] = tm.hysteresis[gamma[0]]
+            out.append(self.from_terms(dataclasses.replace(tm, hysteresis=hyst)))
+        return out
 
     def equations(self) -> str:  # pragma: no cover - abstract
         """The family's equations in its parameters' names, one per line."""
