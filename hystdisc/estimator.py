@@ -73,7 +73,6 @@ from hystdisc.errors import HystdiscError, HystdiscWarning
 from hystdisc.fitting import (
     MIN_STAGED_LEVELS,
     FamilyParametrization,
-    FamilySystemParametrization,
     FitData,
     OEFit,
     OutputErrorFitter,
@@ -84,7 +83,7 @@ from hystdisc.fitting import (
     screen_runs,
     staged_fit,
 )
-from hystdisc.fitting.multistart import best_of_starts, nesting_pass, random_starts
+from hystdisc.fitting.multistart import best_of_starts, nesting_pass, random_starts, system_fit
 from hystdisc.fitting.staged import levels_start
 from hystdisc.models import FAMILIES, format_equation, get_family
 from hystdisc.registry import experiment_names, family_names, get_experiment
@@ -97,9 +96,6 @@ MAX_THREADS = 4
 _SAY_LOCK = threading.Lock()
 #: Families within this BIC of the lowest are a tie, resolved towards fewer parameters.
 SELECTION_TIE_BIC = 2.0
-#: Levenberg-Marquardt iterations of each start of a state-space family before the best
-#: start is continued to convergence.
-SYSTEM_START_NFEV = 8
 #: Other basins of a term family's stage-1 grid among its output-error starts.
 GRID_BASINS = 2
 #: A family is fitted from more starts when its first fit is above the noise floor and
@@ -508,30 +504,12 @@ class Discovery(BaseEstimator):
         return starts
 
     def _system_fit(self, name: str, base: OEFit, fd: FitData, say) -> OEFit:
-        """A system family by output error from each of its starts (mapped from the
-        standard Bouc-Wen fit ``base``); the best is kept, and how many starts reached it
-        is noted (the spread when they disagree)."""
-        fam = FAMILIES[name]
-        fixed = {p: 0.0 for p in fam.current_params} if self.single_current_ else {}
-        bp = dict(base.params)
-        vel = float(np.median([np.max(np.abs(w)) for w in fd.theta_dot]))
-        starts = fam.starts(bp, velocity=vel)
-        for _, st in starts:
-            for k in ("k_s", "J"):
-                if k in bp:
-                    st.setdefault(k, bp[k])
-
-        pars = [
-            (label, FamilySystemParametrization(name, fd.experiment, start, fixed=fixed))
-            for label, start in starts
-        ]
-        # every start a few iterations, then the best one to convergence
-        best = best_of_starts(
-            fd, pars, self.max_nfev, SYSTEM_START_NFEV, mapper=self._map, say=say, name=name
-        )
+        """A system family from its starts mapped from ``base`` (:func:`system_fit`)."""
+        fixed = {p: 0.0 for p in FAMILIES[name].current_params} if self.single_current_ else {}
+        fit = system_fit(name, base, fd, self.max_nfev, fixed, mapper=self._map, say=say)
         if self.heldout:
-            best = OutputErrorFitter(fd, best.par, max_nfev=self.max_nfev).heldout_at(best)
-        return best
+            fit = OutputErrorFitter(fd, fit.par, max_nfev=self.max_nfev).heldout_at(fit)
+        return fit
 
     def _decided_by_staged(self) -> dict[str, str]:
         """Effects the staged fit decided: the current law of the hysteretic torque is
@@ -685,14 +663,9 @@ class Discovery(BaseEstimator):
                 pars.append((label, par))
             if (lv := levels_start(fd, first.par, first.params)) is not None:
                 pars.append(("current levels", first.par.like(lv, first.par.effects)))
+            good = NOISE_RATIO * fd.noise_std
             return best_of_starts(
-                fd,
-                pars,
-                self.max_nfev,
-                say=say,
-                name=name,
-                good_rms=NOISE_RATIO * fd.noise_std,
-                first=self.family_fits_[name],
+                fd, pars, self.max_nfev, say=say, name=name, good_rms=good, first=first
             )
 
         def with_heldout(name):
@@ -704,14 +677,8 @@ class Discovery(BaseEstimator):
         def family_fit_std(eq, fd):
             say("stage 2: output-error fit of bouc-wen-std (the start of the system families)")
             start, norm = _normalization("bouc-wen-std", self._family_start(eq, "bouc-wen-std"))
-            fixed = (
-                {p: 0.0 for p in FAMILIES["bouc-wen-std"].current_params}
-                if self.single_current_
-                else {}
-            )
-            par = FamilyParametrization(
-                "bouc-wen-std", eq.experiment, start, fixed=fixed, normalization=norm
-            )
+            fixed = family_fixed("bouc-wen-std")
+            par = FamilyParametrization("bouc-wen-std", eq.experiment, start, (), fixed, norm)
             return OutputErrorFitter(fd, par, max_nfev=self.max_nfev).fit(heldout=False)
 
         fits = self._map(family_fit, list(range(len(fams) + (0 if same else 1))))
@@ -857,7 +824,17 @@ class Discovery(BaseEstimator):
     def predict(self, dataset: Dataset, family: str | None = None) -> list[np.ndarray]:
         """Simulate the fitted model on the runs of ``dataset``.
 
-        Without ``family``: the selected family with the effects the closing loop accepted.
+        Parameters
+        ----------
+        dataset : Dataset
+            Runs of the same experiment type (their motion, input and current).
+        family : str, optional
+            A family's own fit; by default the selected family with the accepted effects.
+
+        Returns
+        -------
+        list of ndarray
+            The simulated output of each run (angle, or torque for driven runs).
         """
         self._check_fitted()
         if family is None:
@@ -867,7 +844,18 @@ class Discovery(BaseEstimator):
         return predict_dataset(fit.model, dataset, self.experiment_, self.input_hold)
 
     def score(self, dataset: Dataset) -> float:
-        """Coefficient of determination R^2 of the simulated output on ``dataset``."""
+        """Coefficient of determination R^2 of the simulated output on ``dataset``.
+
+        Parameters
+        ----------
+        dataset : Dataset
+            Runs of the same experiment type.
+
+        Returns
+        -------
+        float
+            ``1 - SS_res / SS_tot`` over every sample of every run.
+        """
         preds = self.predict(dataset)
         output = get_experiment(self.experiment_).output
         meas = [getattr(r, output) for r in dataset.runs]
@@ -876,7 +864,13 @@ class Discovery(BaseEstimator):
         return float(1.0 - np.sum((y - p) ** 2) / np.sum((y - y.mean()) ** 2))
 
     def equations(self) -> str:
-        """pysindy-style print of the discovered equations."""
+        """pysindy-style text of the discovered equations.
+
+        Returns
+        -------
+        str
+            The torque equation, the hysteresis equation (and ``J`` when identifiable).
+        """
         if not hasattr(self, "discovered_fit_"):
             self._check_fitted()
         tm = self.discovered_fit_.term_model
@@ -888,7 +882,13 @@ class Discovery(BaseEstimator):
         return "\n".join(lines)
 
     def print(self, file=None) -> None:
-        """Print the discovered equations (like ``pysindy.SINDy.print``)."""
+        """Print the discovered equations (like ``pysindy.SINDy.print``).
+
+        Parameters
+        ----------
+        file : file-like, optional
+            Where to print (standard output by default).
+        """
         print(self.equations(), file=file or sys.stdout)
 
     def _repr_html_(self) -> str:

@@ -35,7 +35,7 @@ import numpy as np
 
 from hystdisc.fitting.data import FitData
 from hystdisc.fitting.output_error import OEFit, OutputErrorFitter
-from hystdisc.fitting.parametrization import Parametrization
+from hystdisc.fitting.parametrization import FamilySystemParametrization, Parametrization
 from hystdisc.models import RIG_PARAMS, get_family
 
 #: Levenberg-Marquardt iterations of each start before the best is continued.
@@ -49,6 +49,9 @@ EXPONENT_STEP = 1.0
 #: A mapped optimum refits a family when it fits better than the family's optimum by
 #: more than this relative RSS.
 NESTING_RTOL = 1e-3
+#: Levenberg-Marquardt iterations of each start of a state-space family before the best
+#: start is continued to convergence.
+SYSTEM_START_NFEV = 8
 #: At most this many nesting passes (a pass that changes nothing ends them).
 NESTING_PASSES = 3
 
@@ -310,3 +313,55 @@ def _nested_refit(
     new.extra.update({k: v for k, v in fit.extra.items() if k not in new.extra})
     new.extra["nested_from"] = other
     return new
+
+
+def system_fit(
+    name: str,
+    base: OEFit,
+    data: FitData,
+    max_nfev: int,
+    fixed: Mapping[str, float] | None = None,
+    mapper: Callable | None = None,
+    say: Say = _quiet,
+) -> OEFit:
+    """A state-space family by output error from each of its starts, mapped from a term
+    family's fit ``base`` (the standard Bouc-Wen one: ``Family.starts``); the best is
+    kept, and how many starts reached it is noted.
+
+    Parameters
+    ----------
+    name : str
+        The state-space family.
+    base : OEFit
+        The fit its starts are mapped from (its rig parameters are kept).
+    data : FitData
+        The runs.
+    max_nfev : int
+        Iterations of the best start's fit.
+    fixed : mapping, optional
+        Parameters held at a value (e.g. the current slopes at one current).
+    mapper : callable, optional
+        ``map``-like runner of the starts (threads).
+    say : callable
+        Progress messages.
+
+    Returns
+    -------
+    OEFit
+        The best start's fit (without its held-out error).
+    """
+    fam = get_family(name)
+    bp = dict(base.params)
+    vel = float(np.median([np.max(np.abs(w)) for w in data.theta_dot]))
+    starts = fam.starts(bp, velocity=vel)
+    for _, st in starts:
+        for k in ("k_s", "J"):
+            if k in bp:
+                st.setdefault(k, bp[k])
+    pars = [
+        (label, FamilySystemParametrization(name, data.experiment, st, fixed=dict(fixed or {})))
+        for label, st in starts
+    ]
+    return best_of_starts(
+        data, pars, max_nfev, SYSTEM_START_NFEV, mapper=mapper, say=say, name=name
+    )
