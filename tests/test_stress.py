@@ -6,7 +6,10 @@ the command-line entry point, in process), on short records. All four criteria o
 suite must hold: the true family selected with no effect added, every identifiable
 parameter within 5 % of the truth (in the family's own normalization), the RMS within
 10 % of the noise floor ``max(noise, q/sqrt(12))``, the truth inside every identifiable
-parameter's 95 % interval.
+parameter's interval at the simultaneous 95 % level (Bonferroni over the case's k
+parameters, ``stress.joint_z``): with exact 95 % intervals the truth is inside all k of
+them in only about 0.95^k of the cases (0.70 for k = 7), so "inside every 95 % interval"
+fails a correct fit in a third of the cases; the suite reports both.
 """
 
 from __future__ import annotations
@@ -37,7 +40,7 @@ def test_stress_case(tmp_path, family, index, condition, duration):
     assert rec["checked"], "no identifiable parameter to check"
     assert rec["criteria"]["params"], stress.why(rec)
     assert abs(rec["rms_ratio"] - 1.0) <= stress.RMS_TOL, stress.why(rec)
-    assert rec["criteria"]["ci"], stress.why(rec)
+    assert rec["criteria"]["ci_joint"], (rec["z"], stress.joint_z(len(rec["z"])))
     if condition == "spikes":  # the glitches are found, not fitted
         assert rec["outliers_found"] == stress.CONDITIONS["spikes"]["spikes"][0]
 
