@@ -49,7 +49,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--currents",
         type=_currents,
         metavar="I,I,...",
-        help="currents of the candidate runs, A (default: 0 to twice the largest trained)",
+        help="currents of the candidate runs, A (default: 0 to the largest trained, 5 levels)",
     )
     p.add_argument(
         "--parameters",

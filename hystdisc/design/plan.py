@@ -297,7 +297,7 @@ def design(
         The runs to choose from; default the grid of
         :func:`~hystdisc.design.runs.candidate_runs` around the training envelope.
     currents : list of float, optional
-        Currents of the default grid (default: 0 to twice the largest trained current).
+        Currents of the default grid (default: 0 to the largest trained current).
     parameters : list of str, optional
         The parameters whose widest relative interval is shrunk (default: see
         :func:`information_in_hand`).

@@ -140,17 +140,21 @@ def recorded_runs(envelope: dict, driven: bool, fs: float) -> list[RunSpec]:
 
 
 def default_currents(envelope: dict) -> list[float]:
-    """Currents of the default grid: 0 to twice the largest trained current, 5 levels.
+    """Currents of the default grid: 0 to the largest trained current, 5 levels.
+
+    The current laws are identified only up to the largest current the fit saw (an MR
+    damper saturates, and the coil has its own limit): a run beyond it is suggested only
+    when its currents are named (``--currents``).
 
     Examples
     --------
-    >>> default_currents({"current_min": 0.0, "current_max": 0.5})
+    >>> default_currents({"current_min": 0.0, "current_max": 1.0})
     [0.0, 0.25, 0.5, 0.75, 1.0]
     """
     top = float(envelope.get("current_max") or 0.0)
     if top <= 0:
         return [0.0]
-    return [round(float(c), 6) for c in np.linspace(0.0, 2 * top, 5)]
+    return [round(float(c), 6) for c in np.linspace(0.0, top, 5)]
 
 
 def candidate_runs(
