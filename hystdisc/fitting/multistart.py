@@ -12,10 +12,13 @@ than Dahl's own). Three tools make the fits global enough to trust:
 2. :func:`random_starts` perturbs a start inside the admissible box (log-uniform factors
    up to :data:`RANDOM_FACTOR` on every free parameter, the exponents additively).
 3. :func:`nesting_pass`: the optimum of every other family, mapped through the term form
-   (:func:`mapped_start`; Dahl into LuGre, seed-form into standard Bouc-Wen and back), is
-   simulated once in each family; when it fits better than the family's own optimum the
-   family contains that model there and is refitted from it. A family then never ends
-   with a worse fit than a family it contains.
+   (:func:`mapped_starts`, the family's ``term_starts``: Dahl into LuGre; Dahl and
+   LuGre into Bouc-Wen, whose gamma term is theirs at n -> 0 (seed form) or n = 1
+   (standard form); the two Bouc-Wen forms into each other, exponent shifted by one or
+   kept), is simulated once in each family; when it fits better than the family's own
+   optimum the family is refitted from it. The pass repeats while it changes a fit (at
+   most :data:`NESTING_PASSES`). A family then never ends with a worse fit than a
+   family it contains.
 
 Examples
 --------
