@@ -25,6 +25,7 @@ from hystdisc.fitting.multistart import (
     random_starts,
     start_rss,
 )
+from hystdisc.fitting.staged import levels_start
 from hystdisc.models import Model
 from hystdisc.simulation.synth import generate
 
@@ -138,3 +139,17 @@ def test_the_loop_finds_an_offset_from_several_starts(offset_run):
     assert not loop.unexplained
     # no stiffening or damping term stands in for the offset
     assert not {"cubic_stiffness", "quadratic_damping"} & set(loop.effects)
+
+
+def test_current_levels_start_undoes_a_trade_between_the_slopes():
+    # a joint Bingham fit can trade the viscous slope c_b against the friction slope f_b;
+    # fitted one current level at a time there is no slope to trade, and the lines
+    # through the levels give both back
+    truth = {"c_a": 0.42, "c_b": 0.47, "f_a": 0.59, "f_b": 0.77, "k_s": 212.7}
+    data = generate(Model("bingham", truth), currents=(0, 0.5, 1), duration=2, noise=NOISE, seed=11)
+    d = Discovery(model="bingham", close_loop=False, heldout=False).fit(data)
+    fit = d.family_fits_["bingham"]
+    swapped = {**fit.params, "c_b": fit.params["f_b"], "f_b": fit.params["c_b"]}
+    lv = levels_start(d.fit_data_, fit.par.like(swapped, ()), swapped)
+    for k in ("c_a", "c_b", "f_a", "f_b"):
+        assert lv[k] == pytest.approx(truth[k], rel=0.05), k

@@ -475,9 +475,9 @@ def levels_start(
     dict or None
         ``start`` with each law's passive parameter and slope replaced.
     """
-    levels = level_fits(fd, par, start, max_nfev)
-    if len(levels) < 2:
+    if level_runs(fd.currents)[0].size < 2:
         return None
+    levels = level_fits(fd, par, start, max_nfev)
     out = dict(start)
     i = [lv.current for lv in levels]
     for passive, slope in par.family.current_laws.values():
