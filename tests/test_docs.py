@@ -130,14 +130,20 @@ def _public_objects():
                 continue
             yield f"{modname}.{name}", obj
             if inspect.isclass(obj):
-                for attr, member in vars(obj).items():
-                    if attr.startswith("_"):
-                        continue
-                    if isinstance(member, (staticmethod, classmethod)):
-                        member = member.__func__
-                    if inspect.isfunction(member) or isinstance(member, property):
-                        # looked up through the class: an override inherits its docstring
-                        yield f"{modname}.{name}.{attr}", getattr(obj, attr, member)
+                for attr, member in _methods(obj):
+                    # looked up through the class: an override inherits its docstring
+                    yield f"{modname}.{name}.{attr}", getattr(obj, attr, member)
+
+
+def _methods(cls):
+    """The public methods and properties a class defines itself."""
+    for attr, member in vars(cls).items():
+        if attr.startswith("_"):
+            continue
+        if isinstance(member, (staticmethod, classmethod)):
+            member = member.__func__
+        if inspect.isfunction(member) or isinstance(member, property):
+            yield attr, member
 
 
 def test_every_public_object_has_a_docstring():
@@ -154,13 +160,8 @@ def _exported():
         canonical = f"{obj.__module__}.{obj.__qualname__}"
         yield canonical, obj
         if inspect.isclass(obj):
-            for attr, member in vars(obj).items():
-                if attr.startswith("_"):
-                    continue
-                if isinstance(member, (staticmethod, classmethod)):
-                    member = member.__func__
-                if inspect.isfunction(member) or isinstance(member, property):
-                    yield f"{canonical}.{attr}", member
+            for attr, member in _methods(obj):
+                yield f"{canonical}.{attr}", member
 
 
 #: Exported methods still without their numpydoc sections: ``estimator.py`` is at the

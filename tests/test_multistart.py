@@ -19,7 +19,6 @@ from hystdisc.data import load
 from hystdisc.fitting import FamilyParametrization
 from hystdisc.fitting.multistart import (
     best_of_starts,
-    mapped_start,
     mapped_starts,
     nesting_pass,
     random_starts,
@@ -43,7 +42,7 @@ def test_a_family_never_ends_worse_than_a_model_it_contains():
     d = _dahl_fit()
     fd, dahl = d.fit_data_, d.family_fits_["dahl"]
     # LuGre contains Dahl: Dahl's optimum maps into it exactly (zero extra terms)
-    start = mapped_start("lugre", dahl)
+    (start,) = mapped_starts("lugre", dahl)
     par = FamilyParametrization("lugre", "release", start)
     assert abs(start_rss(fd, par, dahl.nuisance) / dahl.rss - 1.0) < 1e-6
     # a LuGre fit that ended in a poor place (its parameters and RSS there) ...

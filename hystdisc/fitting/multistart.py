@@ -239,12 +239,6 @@ def mapped_starts(family: str, fit: OEFit) -> list[dict[str, float]]:
     return out
 
 
-def mapped_start(family: str, fit: OEFit) -> dict[str, float] | None:
-    """The first of :func:`mapped_starts` (None when there is none)."""
-    starts = mapped_starts(family, fit)
-    return starts[0] if starts else None
-
-
 def start_rss(data: FitData, par: Parametrization, nuisance: np.ndarray | None = None) -> float:
     """RSS of ``par`` at its start, with the initial states ``nuisance`` (e.g. those of the
     fit the start was mapped from, when they are laid out alike) or the runs' first
