@@ -40,7 +40,9 @@ spikes of 50 noise std found at its sample.
 
 Examples
 --------
->>> import numpy as np
+>>> import functools
+
+import numpy as np
 >>> rng = np.random.default_rng(0)
 >>> t = np.arange(3000) / 1000.0
 >>> x = 0.3 * np.exp(-t) * np.cos(2 * np.pi * 2 * t) + rng.normal(0, 1e-3, t.size)
@@ -55,6 +57,7 @@ Examples
 from __future__ import annotations
 
 import dataclasses
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -120,6 +123,16 @@ def _interior_weights() -> np.ndarray:
     return np.linalg.pinv(V)[0]
 
 
+@functools.lru_cache(maxsize=4096)
+def _weights(offsets: tuple[int, ...], degree: int) -> tuple[np.ndarray, float]:
+    """Weights of the value at offset 0 of the local polynomial of ``degree`` through the
+    samples at ``offsets``, and the gain ``sqrt(1 + |w|^2)`` (a few patterns recur along
+    a signal: each is solved once)."""
+    V = np.vander(np.array(offsets) / HALF, degree + 1, increasing=True)
+    w = np.linalg.pinv(V)[0]
+    return w, float(np.sqrt(1.0 + w @ w))
+
+
 def _loo_at(x: np.ndarray, i: int, out: np.ndarray) -> tuple[float, float]:
     """Prediction of ``x[i]`` from its nearest non-excluded neighbours and its gain."""
     n = x.size
@@ -129,9 +142,8 @@ def _loo_at(x: np.ndarray, i: int, out: np.ndarray) -> tuple[float, float]:
     if j.size < DEGREE + 2:
         return np.nan, np.nan
     j = j[np.argsort(np.abs(j - i), kind="stable")[: 2 * HALF]]
-    V = np.vander((j - i) / HALF, DEGREE + 1, increasing=True)
-    w = np.linalg.pinv(V)[0]
-    return float(w @ x[j]), float(np.sqrt(1.0 + w @ w))
+    w, gain = _weights(tuple((j - i).tolist()), DEGREE)
+    return float(w @ x[j]), gain
 
 
 def _local_scale(x: np.ndarray, i: int, out: np.ndarray) -> float:
@@ -163,9 +175,8 @@ def _off_both_sides(x: np.ndarray, i: int, out: np.ndarray, level: float) -> boo
         j = j[~out[j]][:SIDE]
         if j.size < SIDE:
             continue
-        V = np.vander((j - i) / HALF, 3, increasing=True)
-        w = np.linalg.pinv(V)[0]
-        if abs(x[i] - w @ x[j]) <= level * np.sqrt(1.0 + w @ w):
+        w, gain = _weights(tuple((j - i).tolist()), 2)
+        if abs(x[i] - w @ x[j]) <= level * gain:
             return False
     return True
 
