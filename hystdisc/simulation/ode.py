@@ -5,7 +5,8 @@
 Dormand–Prince 5(4) pair and error control: steps end on every sample, the exogenous
 inputs are linear between samples, and a step that crosses a kink of the rate (a
 velocity reversal, ``|z|^n`` at zero) is rejected and retried smaller, so the error stays
-within the tolerances there too. numba compiles the integrator once per model class.
+within the tolerances there too. numba compiles the integrator once per model class and caches it on disk
+(:mod:`hystdisc.simulation.specialize`).
 
 The seed's families have their own fixed-step kernels (:mod:`hystdisc.simulation.kernels`),
 tuned for the many short simulations of a fit; both integrate the same compiled rate
@@ -33,6 +34,7 @@ import numpy as np
 
 from hystdisc.errors import HystdiscError
 from hystdisc.models.system import StateSpaceModel
+from hystdisc.simulation.specialize import specialize
 
 #: Default relative and absolute tolerances of :func:`simulate_system`.
 RTOL = 1e-8
@@ -59,15 +61,17 @@ _E = (
 )
 
 
-@numba.njit(cache=False, nogil=True)
+@numba.njit(cache=True, nogil=True)
 def _input_at(U, k, f, out):
     for j in range(out.shape[0]):
         out[j] = U[k, j] + (U[k + 1, j] - U[k, j]) * f
 
 
-@numba.njit(cache=False, nogil=True)
-def _integrate(rate, observe, x0, t, U, p, rtol, atol, X, Y, max_steps):
-    """Dormand–Prince 5(4) over the samples ``t``; returns 0 (ok) or 1 (failed)."""
+def _integrate(x0, t, U, p, rtol, atol, X, Y, max_steps):
+    """Dormand–Prince 5(4) over the samples ``t``; returns 0 (ok) or 1 (failed).
+
+    A template: the model's ``rate`` and ``observe`` are bound by
+    :func:`~hystdisc.simulation.specialize.specialize` (a cached kernel per model)."""
     n = x0.shape[0]
     x = x0.copy()
     ks = np.zeros((7, n))
@@ -76,7 +80,7 @@ def _integrate(rate, observe, x0, t, U, p, rtol, atol, X, Y, max_steps):
     u = np.empty(U.shape[1])
     X[0] = x
     _input_at(U, 0, 0.0, u)
-    Y[0] = observe(x, u, p)
+    Y[0] = observe(x, u, p)  # noqa: F821
     h = (t[1] - t[0]) if t.shape[0] > 1 else 0.0
     for k in range(t.shape[0] - 1):
         ta = t[k]
@@ -87,7 +91,7 @@ def _integrate(rate, observe, x0, t, U, p, rtol, atol, X, Y, max_steps):
             hh = min(h, span - tt)
             cut = hh < h
             _input_at(U, k, tt / span, u)
-            rate(x, u, p, ks[0])
+            rate(x, u, p, ks[0])  # noqa: F821
             for s in range(1, 6):
                 for i in range(n):
                     acc = 0.0
@@ -114,14 +118,14 @@ def _integrate(rate, observe, x0, t, U, p, rtol, atol, X, Y, max_steps):
                         )
                     xt[i] = x[i] + hh * acc
                 _input_at(U, k, (tt + _C[s - 1] * hh) / span, u)
-                rate(xt, u, p, ks[s])
+                rate(xt, u, p, ks[s])  # noqa: F821
             for i in range(n):
                 acc = 0.0
                 for s in range(6):
                     acc += _B[s] * ks[s, i]
                 x5[i] = x[i] + hh * acc
             _input_at(U, k, (tt + hh) / span, u)
-            rate(x5, u, p, ks[6])
+            rate(x5, u, p, ks[6])  # noqa: F821
             err = 0.0
             for i in range(n):
                 e = 0.0
@@ -143,7 +147,7 @@ def _integrate(rate, observe, x0, t, U, p, rtol, atol, X, Y, max_steps):
                 h = hh * fac
         X[k + 1] = x
         _input_at(U, k, 1.0, u)
-        Y[k + 1] = observe(x, u, p)
+        Y[k + 1] = observe(x, u, p)  # noqa: F821
     return 0
 
 
@@ -235,9 +239,8 @@ def simulate_system(
     p = np.ascontiguousarray(model.run_parameters(dict(values or {}), float(current)))
     X = np.full((t.size, x0.size), np.nan)
     Y = np.full(t.size, np.nan)
-    status = _integrate(
-        model.rate, model.observe, x0, t, U, p, rtol, atol, X, Y, int(max_steps_per_sample)
-    )
+    kernel = specialize(_integrate, rate=model.rate, observe=model.observe)
+    status = kernel(x0, t, U, p, rtol, atol, X, Y, int(max_steps_per_sample))
     if status:
         raise HystdiscError(
             f"{model.name}: the simulation diverged or stalled; fix: check the parameters"
