@@ -1,19 +1,20 @@
 """Forward sensitivities of the term kernels: a run's output and its derivatives in one pass.
 
-The kernels here integrate exactly what :func:`~hystdisc.simulation.kernels._mech_batch`
-and :func:`~hystdisc.simulation.kernels._driven_batch` integrate (the same arithmetic, so
-the same output to the last bit) together with the derivative of the discrete scheme:
+The kernels here integrate exactly what the kernels of
+:func:`~hystdisc.simulation.batch.mech_batch` and
+:func:`~hystdisc.simulation.batch.driven_batch` integrate (the same arithmetic, so the
+same output to the last bit) together with the derivative of the discrete scheme:
 every RK4 stage differentiated by hand in forward mode, with the sub-step count of each
 sample interval held at the value the plain kernel chooses (it is not differentiated).
 The result is the exact derivative of the simulated output with respect to the run's
 *directions*: the entries of its term vector and its initial state, numbered
 
-====================  ==========================================================
-``0 .. 9``            base coefficients ``c`` (:data:`~hystdisc.models.compiled.N_BASE`)
-``10 .. 14``          hysteresis coefficients ``b``
-``15``, ``16``        the exponent ``n``, the inertia ``J``
-``17``, ``18``, ``19``  the initial ``theta``, ``theta_dot`` and ``z``
-====================  ==========================================================
+========================  =====================================================
+``0 .. 9``                base coefficients ``c`` (:data:`~hystdisc.models.compiled.N_BASE`)
+``10 .. 14``              hysteresis coefficients ``b``
+``15``, ``16``            the exponent ``n``, the inertia ``J``
+``17``, ``18``, ``19``    the initial ``theta``, ``theta_dot`` and ``z``
+========================  =====================================================
 
 Only the directions listed in ``act`` are propagated, so the cost grows with the number
 wanted (each adds a few multiplications per stage to one simulation's transcendental
