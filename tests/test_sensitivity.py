@@ -158,7 +158,12 @@ def test_mech_kernel_with_sensitivities_gives_the_same_bits(hold):
     np.testing.assert_array_equal(sens[0], np.eye(N_DIR)[-3])
 
 
-def test_driven_kernel_with_sensitivities_gives_the_same_bits():
+@pytest.mark.parametrize(
+    "act",
+    [[0, 2, 4, 8, 9, 10, 12, 13, 14, 15, 19], [0, 2, 4, 8, 9]],
+    ids=["rate directions", "torque directions only"],
+)
+def test_driven_kernel_with_sensitivities_gives_the_same_bits(act):
     tm = _everything()
     coef, b, n = _vectors(tm, CURRENTS)
     t = np.arange(0.0, 1.0, 2e-3)
@@ -169,7 +174,7 @@ def test_driven_kernel_with_sensitivities_gives_the_same_bits():
     z0 = np.array([0.0, 0.2])
     opts = {"ratio": 0.4, "min_sub": 1, "max_sub": 8}
     tq, z, status = driven_batch(coef, b, n, tt, th, w, off, z0, **opts)
-    act = np.array([0, 2, 4, 8, 9, 10, 12, 13, 14, 15, 19])
+    act = np.array(act)
     tq2, z2, sens, status2 = driven_sens_batch(coef, b, n, tt, th, w, off, z0, act, **opts)
     np.testing.assert_array_equal(tq, tq2)
     np.testing.assert_array_equal(z, z2)

@@ -203,14 +203,21 @@ def rate_grad(b, n, w, z, need, g):
     if b[2] != 0.0 or b[3] != 0.0 or b[4] != 0.0 or need[2] or need[3] or need[4] or need[5]:
         az = abs(z)
         sz = _sign(z)
+        p = 0.0
+        pm1 = 0.0  # |z|^(n-1); its value at 0 is the slope's mean there (a kink for n = 1)
+        lz = 0.0
         if az > 0.0:
-            p = az**n
-            pm1 = p / az  # |z|^(n-1)
-            lz = math.log(az)
-        else:
-            p = 0.0
-            pm1 = 0.0  # the slope of |z|^n at 0 (0 for n > 1; a kink for n = 1)
-            lz = 0.0
+            if n == 1.0:
+                p = az
+                pm1 = 1.0
+            elif n == 2.0:
+                p = az * az
+                pm1 = az
+            else:
+                p = az**n
+                pm1 = p / az
+            if need[5]:
+                lz = math.log(az)
         dw += b[2] * p + b[3] * sw * z * p + b[4] * sw * sz * p
         dz += b[2] * w * n * pm1 * sz + b[3] * aw * (1.0 + n) * p + b[4] * aw * n * pm1
         g[2] = w * p

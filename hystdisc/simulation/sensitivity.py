@@ -33,7 +33,7 @@ from hystdisc.models.compiled import (
     term_torque,
     torque_grad,
 )
-from hystdisc.simulation.kernels import _input, _mech_rate, _n_sub
+from hystdisc.simulation.kernels import _input, _mech_rate, _n_sub, _z_segment
 
 #: First direction of the hysteresis coefficients, then the exponent, the inertia and the
 #: initial states (see the module docstring).
@@ -57,25 +57,38 @@ def _needs(act):
 
 
 @numba.njit(cache=True, inline="always")
-def _stage_sens(c, b, n, J, u, th, w, z, eps, kw, act, need, gT, gR, xt, xw, xz, ot, ow, oz):
+def _stage_sens(c, b, n, J, u, th, w, z, eps, kw, act, need, needr, gT, gR, sc, src, dst):
     """Derivative of one mechanical stage ``(theta', theta'', z')`` at ``(th, w, z)`` along
-    each direction, the state's derivatives ``xt, xw, xz`` given; ``kw`` is the stage's
-    ``theta''``. Writes ``ot, ow, oz``."""
+    each direction: the state's derivatives are rows ``src .. src + 2`` of ``sc``, the
+    stage's go to rows ``dst .. dst + 2``; ``kw`` is the stage's ``theta''``; ``needr``
+    flags the rate's directions. (Rows, not row views: a view per stage costs more than
+    the stage.)"""
     tth, tw, tz = torque_grad(c, th, w, z, eps, need, gT)
-    rw, rz = rate_grad(b, n, w, z, need[DIR_B:DIR_J], gR)
+    rw, rz = rate_grad(b, n, w, z, needr, gR)
     for j in range(act.shape[0]):
         d = act[j]
-        a = -(tth * xt[j] + tw * xw[j] + tz * xz[j])
-        r = rw * xw[j] + rz * xz[j]
+        xw = sc[src + 1, j]
+        xz = sc[src + 2, j]
+        a = -(tth * sc[src, j] + tw * xw + tz * xz)
+        r = rw * xw + rz * xz
         if d < N_BASE:
             a -= gT[d]
         elif d < DIR_J:
             r += gR[d - DIR_B]
         elif d == DIR_J:
             a -= kw
-        ot[j] = xw[j]
-        ow[j] = a / J
-        oz[j] = r
+        sc[dst, j] = xw
+        sc[dst + 1, j] = a / J
+        sc[dst + 2, j] = r
+
+
+@numba.njit(cache=True, inline="always")
+def _stage_state(sc, frac, dst):
+    """Rows 3-5 of ``sc``: the state's derivatives (rows 0-2) plus ``frac`` times the
+    stage derivatives in rows ``dst .. dst + 2``."""
+    for i in range(3):
+        for j in range(sc.shape[1]):
+            sc[3 + i, j] = sc[i, j] + frac * sc[dst + i, j]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -108,20 +121,21 @@ def _mech_sens_batch(
     along the directions ``act``: ``sens[k, j]`` at sample ``k``, direction ``act[j]``."""
     na = act.shape[0]
     need = _needs(act)
+    needr = need[DIR_B:DIR_J].copy()
     gT = np.zeros(N_BASE)
     gR = np.zeros(6)
-    # the state's derivatives (0-2), a stage's state (3-5), the four stages (6-17)
+    # rows: the state's derivatives (0-2: theta, theta_dot, z), a stage's state (3-5), the
+    # four stages' derivatives (6-8, 9-11, 12-14, 15-17)
     sc = np.zeros((18, na))
-    st, sw, sz, xt, xw, xz = sc[0], sc[1], sc[2], sc[3], sc[4], sc[5]
     for r in range(offsets.shape[0] - 1):
         c, b, n, J = coef[r], bb[r], nn[r], JJ[r]
         k0, k1 = offsets[r], offsets[r + 1]
         th, w, z = th0[r], w0[r], z0[r]
         for j in range(na):
-            st[j] = 1.0 if act[j] == DIR_TH0 else 0.0
-            sw[j] = 1.0 if act[j] == DIR_W0 else 0.0
-            sz[j] = 1.0 if act[j] == DIR_Z0 else 0.0
-            sens[k0, j] = st[j]
+            sc[0, j] = 1.0 if act[j] == DIR_TH0 else 0.0
+            sc[1, j] = 1.0 if act[j] == DIR_W0 else 0.0
+            sc[2, j] = 1.0 if act[j] == DIR_Z0 else 0.0
+            sens[k0, j] = sc[0, j]
         th_out[k0] = th
         w_out[k0] = w
         z_out[k0] = z
@@ -140,125 +154,48 @@ def _mech_sens_batch(
                 u1 = _input(ua, ub, ma, mb, s / m, hold)
                 u2 = _input(ua, ub, ma, mb, (s + 0.5) / m, hold)
                 u3 = _input(ua, ub, ma, mb, (s + 1.0) / m, hold)
+                # the plain kernel's stages, operation for operation
                 k1t, k1w, k1z = _mech_rate(c, b, n, J, u1, th, w, z, eps)
-                _stage_sens(
-                    c,
-                    b,
-                    n,
-                    J,
-                    u1,
-                    th,
-                    w,
-                    z,
-                    eps,
-                    k1w,
-                    act,
-                    need,
-                    gT,
-                    gR,
-                    st,
-                    sw,
-                    sz,
-                    sc[6],
-                    sc[7],
-                    sc[8],
-                )
-                for j in range(na):
-                    xt[j] = st[j] + 0.5 * hs * sc[6, j]
-                    xw[j] = sw[j] + 0.5 * hs * sc[7, j]
-                    xz[j] = sz[j] + 0.5 * hs * sc[8, j]
                 th2, w2, z2 = th + 0.5 * hs * k1t, w + 0.5 * hs * k1w, z + 0.5 * hs * k1z
                 k2t, k2w, k2z = _mech_rate(c, b, n, J, u2, th2, w2, z2, eps)
-                _stage_sens(
-                    c,
-                    b,
-                    n,
-                    J,
-                    u2,
-                    th2,
-                    w2,
-                    z2,
-                    eps,
-                    k2w,
-                    act,
-                    need,
-                    gT,
-                    gR,
-                    xt,
-                    xw,
-                    xz,
-                    sc[9],
-                    sc[10],
-                    sc[11],
-                )
-                for j in range(na):
-                    xt[j] = st[j] + 0.5 * hs * sc[9, j]
-                    xw[j] = sw[j] + 0.5 * hs * sc[10, j]
-                    xz[j] = sz[j] + 0.5 * hs * sc[11, j]
                 th3, w3, z3 = th + 0.5 * hs * k2t, w + 0.5 * hs * k2w, z + 0.5 * hs * k2z
                 k3t, k3w, k3z = _mech_rate(c, b, n, J, u2, th3, w3, z3, eps)
-                _stage_sens(
-                    c,
-                    b,
-                    n,
-                    J,
-                    u2,
-                    th3,
-                    w3,
-                    z3,
-                    eps,
-                    k3w,
-                    act,
-                    need,
-                    gT,
-                    gR,
-                    xt,
-                    xw,
-                    xz,
-                    sc[12],
-                    sc[13],
-                    sc[14],
-                )
-                for j in range(na):
-                    xt[j] = st[j] + hs * sc[12, j]
-                    xw[j] = sw[j] + hs * sc[13, j]
-                    xz[j] = sz[j] + hs * sc[14, j]
                 th4, w4, z4 = th + hs * k3t, w + hs * k3w, z + hs * k3z
                 k4t, k4w, k4z = _mech_rate(c, b, n, J, u3, th4, w4, z4, eps)
+                # and their derivatives
+                _stage_sens(c, b, n, J, u1, th, w, z, eps, k1w, act, need, needr, gT, gR, sc, 0, 6)
+                _stage_state(sc, 0.5 * hs, 6)
                 _stage_sens(
-                    c,
-                    b,
-                    n,
-                    J,
-                    u3,
-                    th4,
-                    w4,
-                    z4,
-                    eps,
-                    k4w,
-                    act,
-                    need,
-                    gT,
-                    gR,
-                    xt,
-                    xw,
-                    xz,
-                    sc[15],
-                    sc[16],
-                    sc[17],
+                    c, b, n, J, u2, th2, w2, z2, eps, k2w, act, need, needr, gT, gR, sc, 3, 9
+                )
+                _stage_state(sc, 0.5 * hs, 9)
+                _stage_sens(
+                    c, b, n, J, u2, th3, w3, z3, eps, k3w, act, need, needr, gT, gR, sc, 3, 12
+                )
+                _stage_state(sc, hs, 12)
+                _stage_sens(
+                    c, b, n, J, u3, th4, w4, z4, eps, k4w, act, need, needr, gT, gR, sc, 3, 15
                 )
                 th += hs / 6.0 * (k1t + 2.0 * k2t + 2.0 * k3t + k4t)
                 w += hs / 6.0 * (k1w + 2.0 * k2w + 2.0 * k3w + k4w)
                 z += hs / 6.0 * (k1z + 2.0 * k2z + 2.0 * k3z + k4z)
-                for j in range(na):
-                    st[j] += hs / 6.0 * (sc[6, j] + 2.0 * sc[9, j] + 2.0 * sc[12, j] + sc[15, j])
-                    sw[j] += hs / 6.0 * (sc[7, j] + 2.0 * sc[10, j] + 2.0 * sc[13, j] + sc[16, j])
-                    sz[j] += hs / 6.0 * (sc[8, j] + 2.0 * sc[11, j] + 2.0 * sc[14, j] + sc[17, j])
+                for i in range(3):
+                    for j in range(na):
+                        sc[i, j] += (
+                            hs
+                            / 6.0
+                            * (
+                                sc[6 + i, j]
+                                + 2.0 * sc[9 + i, j]
+                                + 2.0 * sc[12 + i, j]
+                                + sc[15 + i, j]
+                            )
+                        )
             th_out[k + 1] = th
             w_out[k + 1] = w
             z_out[k + 1] = z
             for j in range(na):
-                sens[k + 1, j] = st[j]
+                sens[k + 1, j] = sc[0, j]
             if not (abs(th) < 1e8 and abs(w) < 1e10 and abs(z) < 1e12):
                 status[r] = 1
                 th_out[k + 1 : k1] = np.nan
@@ -268,12 +205,12 @@ def _mech_sens_batch(
                 break
 
 
-@numba.njit(cache=True)
-def _z_rk4_sens(b, n, z, wa, wb, fa, fc, h, cols, act, dz, moving, dfa, dfc, need, gR, out):
+@numba.njit(cache=True, inline="always")
+def _z_rk4_sens(b, n, z, wa, wb, fa, fc, h, cols, act, sc, src, moving, ra, rc, dst, need, g):
     """:func:`~hystdisc.simulation.kernels._z_rk4` with the derivative of the new ``z``
-    along the directions ``act[cols]`` (``dz``: the start's derivatives), written to
-    ``out``; ``moving``: the ends ``fa``, ``fc`` move too (derivatives ``dfa``, ``dfc``).
-    ``gR`` is scratch of shape ``(4, 6)``."""
+    along the directions ``act[cols]``: the start's derivatives are row ``src`` of ``sc``,
+    the result's go to row ``dst``; ``moving``: the ends ``fa``, ``fc`` move too (their
+    derivatives in rows ``ra``, ``rc``). ``g``: four scratch arrays of 6."""
     hs = h * (fc - fa)
     w1 = wa + (wb - wa) * fa
     w2 = wa + (wb - wa) * (0.5 * (fa + fc))
@@ -287,74 +224,71 @@ def _z_rk4_sens(b, n, z, wa, wb, fa, fc, h, cols, act, dz, moving, dfa, dfc, nee
     k4z = term_rate(b, n, w3, z4)
     ksum = k1z + 2.0 * k2z + 2.0 * k3z + k4z
     zn = z + hs / 6.0 * ksum
-    rw1, rz1 = rate_grad(b, n, w1, z, need, gR[0])
-    rw2, rz2 = rate_grad(b, n, w2, z2, need, gR[1])
-    rw3, rz3 = rate_grad(b, n, w2, z3, need, gR[2])
-    rw4, rz4 = rate_grad(b, n, w3, z4, need, gR[3])
+    if cols.shape[0] == 0:
+        return zn
+    g1, g2, g3, g4 = g
+    rw1, rz1 = rate_grad(b, n, w1, z, need, g1)
+    rw2, rz2 = rate_grad(b, n, w2, z2, need, g2)
+    rw3, rz3 = rate_grad(b, n, w2, z3, need, g3)
+    rw4, rz4 = rate_grad(b, n, w3, z4, need, g4)
     for jj in range(cols.shape[0]):
         j = cols[jj]
         d = act[j] - DIR_B
         p1 = p2 = p3 = p4 = 0.0
         if 0 <= d < 6:
-            p1, p2, p3, p4 = gR[0, d], gR[1, d], gR[2, d], gR[3, d]
+            p1, p2, p3, p4 = g1[d], g2[d], g3[d], g4[d]
+        dh = 0.0
         if moving:
-            dh = h * (dfc[j] - dfa[j])
-            dw1 = (wb - wa) * dfa[j]
-            dw2 = (wb - wa) * (0.5 * (dfa[j] + dfc[j]))
-            dw3 = (wb - wa) * dfc[j]
-            p1 += rw1 * dw1
+            dfa, dfc = sc[ra, j], sc[rc, j]
+            dh = h * (dfc - dfa)
+            dw2 = (wb - wa) * (0.5 * (dfa + dfc))
+            p1 += rw1 * (wb - wa) * dfa
             p2 += rw2 * dw2
             p3 += rw3 * dw2
-            p4 += rw4 * dw3
-        else:
-            dh = 0.0
-        d1 = rz1 * dz[j] + p1
-        d2 = rz2 * (dz[j] + 0.5 * (dh * k1z + hs * d1)) + p2
-        d3 = rz3 * (dz[j] + 0.5 * (dh * k2z + hs * d2)) + p3
-        d4 = rz4 * (dz[j] + dh * k3z + hs * d3) + p4
-        out[j] = dz[j] + dh / 6.0 * ksum + hs / 6.0 * (d1 + 2.0 * d2 + 2.0 * d3 + d4)
+            p4 += rw4 * (wb - wa) * dfc
+        dz = sc[src, j]
+        d1 = rz1 * dz + p1
+        d2 = rz2 * (dz + 0.5 * (dh * k1z + hs * d1)) + p2
+        d3 = rz3 * (dz + 0.5 * (dh * k2z + hs * d2)) + p3
+        d4 = rz4 * (dz + dh * k3z + hs * d3) + p4
+        sc[dst, j] = dz + dh / 6.0 * ksum + hs / 6.0 * (d1 + 2.0 * d2 + 2.0 * d3 + d4)
     return zn
 
 
 @numba.njit(cache=True)
-def _z_segment_sens(b, n, z, wa, wb, f0, f1, h, m, cols, act, sz, need, gR, sc):
-    """:func:`~hystdisc.simulation.kernels._z_segment` with the derivatives ``sz`` of z
-    (updated in place) along ``act[cols]``; ``sc`` is scratch of shape ``(4, len(act))``.
+def _z_segment_sens(b, n, z, wa, wb, f0, f1, h, m, cols, act, sc, need, g):
+    """:func:`~hystdisc.simulation.kernels._z_segment` with the derivatives of z along
+    ``act[cols]``, row 4 of the scratch ``sc`` (updated in place; rows 0-2 are work space,
+    row 3 zeros); ``g``: four scratch arrays of 6.
 
     Where a sub-step is split at the secant zero of z, the split point moves with the
     parameters: its derivative enters the two parts."""
     kinked = b[2] != 0.0 or b[3] != 0.0 or b[4] != 0.0
-    szn, sz1, dfm, zero = sc[0], sc[1], sc[2], sc[3]
     for s in range(m):
         fa = f0 + (f1 - f0) * (s / m)
         fc = f0 + (f1 - f0) * ((s + 1.0) / m)
-        zn = _z_rk4_sens(
-            b, n, z, wa, wb, fa, fc, h, cols, act, sz, False, zero, zero, need, gR, szn
-        )
+        zn = _z_rk4_sens(b, n, z, wa, wb, fa, fc, h, cols, act, sc, 4, False, 3, 3, 0, need, g)
         if kinked and z * zn < 0.0:
             fm = fa + (fc - fa) * (z / (z - zn))
             for jj in range(cols.shape[0]):
                 j = cols[jj]
-                dfm[j] = (fc - fa) * (z * szn[j] - zn * sz[j]) / ((z - zn) * (z - zn))
-            z1 = _z_rk4_sens(
-                b, n, z, wa, wb, fa, fm, h, cols, act, sz, True, zero, dfm, need, gR, sz1
-            )
-            zn = _z_rk4_sens(
-                b, n, z1, wa, wb, fm, fc, h, cols, act, sz1, True, dfm, zero, need, gR, szn
-            )
+                sc[2, j] = (fc - fa) * (z * sc[0, j] - zn * sc[4, j]) / ((z - zn) * (z - zn))
+            z1 = _z_rk4_sens(b, n, z, wa, wb, fa, fm, h, cols, act, sc, 4, True, 3, 2, 1, need, g)
+            zn = _z_rk4_sens(b, n, z1, wa, wb, fm, fc, h, cols, act, sc, 1, True, 2, 3, 0, need, g)
         z = zn
         for jj in range(cols.shape[0]):
-            sz[cols[jj]] = szn[cols[jj]]
+            sc[4, cols[jj]] = sc[0, cols[jj]]
     return z
 
 
 @numba.njit(cache=True, inline="always")
-def _torque_sens(c, th, w, z, eps, act, need, gT, sz, out):
-    """Derivative of the torque at an imposed motion along each direction (z's: ``sz``)."""
+def _torque_sens(c, th, w, z, eps, act, need, gT, sc, sens, k):
+    """Derivative of the torque at an imposed motion along each direction (z's: row 4 of
+    ``sc``), written to ``sens[k]``."""
     _, _, tz = torque_grad(c, th, w, z, eps, need, gT)
     for j in range(act.shape[0]):
         d = act[j]
-        out[j] = tz * sz[j] + (gT[d] if d < N_BASE else 0.0)
+        sens[k, j] = tz * sc[4, j] + (gT[d] if d < N_BASE else 0.0)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -386,9 +320,10 @@ def _driven_sens_batch(
     na = act.shape[0]
     need = _needs(act)
     gT = np.zeros(N_BASE)
-    gR = np.zeros((4, 6))
+    needr = need[DIR_B:DIR_J].copy()
+    g = (np.zeros(6), np.zeros(6), np.zeros(6), np.zeros(6))
+    # rows: work space (0-2), zeros (3), the derivatives of z (4)
     sc = np.zeros((5, na))
-    sz = sc[4]
     nz = 0
     for j in range(na):
         if DIR_B <= act[j] < DIR_J or act[j] == DIR_Z0:
@@ -404,10 +339,10 @@ def _driven_sens_batch(
         k0, k1 = offsets[r], offsets[r + 1]
         z = z0[r]
         for j in range(na):
-            sz[j] = 1.0 if act[j] == DIR_Z0 else 0.0
+            sc[4, j] = 1.0 if act[j] == DIR_Z0 else 0.0
         z_out[k0] = z
         tq_out[k0] = term_torque(c, th_in[k0], w_in[k0], z, eps)
-        _torque_sens(c, th_in[k0], w_in[k0], z, eps, act, need, gT, sz, sens[k0])
+        _torque_sens(c, th_in[k0], w_in[k0], z, eps, act, need, gT, sc, sens, k0)
         status[r] = 0
         work[r] = 0
         for k in range(k0, k1 - 1):
@@ -417,17 +352,23 @@ def _driven_sens_batch(
             wmax = max(abs(wa), abs(wb))
             m = _n_sub(c, b, n, 1.0, 0.0, wmax, z, h, eps, False, 0.0, ratio, min_sub, max_sub[r])
             work[r] += 2 * m + 1
-            nr = need[DIR_B:DIR_J]
-            if wa * wb < 0.0:
+            if cols.shape[0] == 0:  # nothing moves z: the plain integration
+                if wa * wb < 0.0:
+                    f = wa / (wa - wb)
+                    z = _z_segment(b, n, z, wa, wb, 0.0, f, h, m)
+                    z = _z_segment(b, n, z, wa, wb, f, 1.0, h, m)
+                else:
+                    z = _z_segment(b, n, z, wa, wb, 0.0, 1.0, h, m)
+            elif wa * wb < 0.0:
                 # |theta_dot| has a kink where the velocity reverses: split the interval there
                 f = wa / (wa - wb)
-                z = _z_segment_sens(b, n, z, wa, wb, 0.0, f, h, m, cols, act, sz, nr, gR, sc)
-                z = _z_segment_sens(b, n, z, wa, wb, f, 1.0, h, m, cols, act, sz, nr, gR, sc)
+                z = _z_segment_sens(b, n, z, wa, wb, 0.0, f, h, m, cols, act, sc, needr, g)
+                z = _z_segment_sens(b, n, z, wa, wb, f, 1.0, h, m, cols, act, sc, needr, g)
             else:
-                z = _z_segment_sens(b, n, z, wa, wb, 0.0, 1.0, h, m, cols, act, sz, nr, gR, sc)
+                z = _z_segment_sens(b, n, z, wa, wb, 0.0, 1.0, h, m, cols, act, sc, needr, g)
             z_out[k + 1] = z
             tq_out[k + 1] = term_torque(c, th_in[k + 1], w_in[k + 1], z, eps)
-            _torque_sens(c, th_in[k + 1], w_in[k + 1], z, eps, act, need, gT, sz, sens[k + 1])
+            _torque_sens(c, th_in[k + 1], w_in[k + 1], z, eps, act, need, gT, sc, sens, k + 1)
             if not abs(z) < 1e12:
                 status[r] = 1
                 tq_out[k + 1 : k1] = np.nan
