@@ -17,11 +17,18 @@ import numpy as np
 import pytest
 
 from hystdisc.data import load
-from hystdisc.fitting import FamilyParametrization, FitData, OutputErrorFitter
+from hystdisc.errors import HystdiscError
+from hystdisc.fitting import (
+    FamilyParametrization,
+    FitData,
+    OutputErrorFitter,
+    SystemParametrization,
+)
 from hystdisc.fitting import simulate as fit_simulate
 from hystdisc.fitting.jacobian import exact_jacobian
 from hystdisc.models import Model
 from hystdisc.models.compiled import base_coefficients
+from hystdisc.models.wheel import BeamOnCompliantWheel
 from hystdisc.simulation.batch import (
     driven_batch,
     driven_sens_batch,
@@ -269,6 +276,20 @@ def test_a_diverging_start_falls_back_to_forward_differences():
     with np.errstate(all="ignore"):
         assert exact_jacobian(fd, par, x, nu, True, fitter.masks, fitter.rel_step) is None
         np.testing.assert_array_equal(fitter.jacobian(v), fitter.difference_jacobian(v))
+
+
+def test_the_jacobian_mode_chooses_the_method():
+    fd = _fit_data("dahl", "release")
+    par = FamilyParametrization("dahl", "release", {})
+    v = np.concatenate([par.x0, fd.nuisance_start()])
+    forward = OutputErrorFitter(fd, par, jacobian_mode="forward")
+    assert not forward.exact and OutputErrorFitter(fd, par).exact
+    np.testing.assert_array_equal(forward.jacobian(v), forward.difference_jacobian(v))
+    with pytest.raises(HystdiscError, match="unknown Jacobian mode"):
+        OutputErrorFitter(fd, par, jacobian_mode="central")
+    # a state-space model has no term kernels: forward differences
+    system = SystemParametrization(BeamOnCompliantWheel("dahl"), {}, {"m_w": 0.3})
+    assert not OutputErrorFitter(fd, system).exact
 
 
 # ----------------------------------------------------------------------------- fits
