@@ -4,8 +4,14 @@ Every run is simulated with the candidate model (release from its own initial an
 estimated as a nuisance parameter; forced from its input; driven from its imposed motion)
 and the measured signal is fitted by the package's own bounded Levenberg-Marquardt
 (:func:`~hystdisc.fitting.lm.levenberg_marquardt`, on the normal equations). The Jacobian
-is computed by forward differences, all columns in one batched, compiled simulation call
-(a run's nuisance parameters only touch that run, so only that run is re-simulated).
+of a model in term form is exact: the compiled kernels integrate the forward sensitivities
+of the output with respect to each run's term vector and initial state in the same pass as
+the output (:func:`~hystdisc.fitting.simulate.simulate_sensitivities`), and the chain rule
+through the (cheap) map from the free parameters to the term vectors gives the columns. A
+state-space model's Jacobian, a diverged simulation's and, on request
+(:data:`JACOBIAN`), any model's are forward differences, all columns in one batched
+simulation call (a run's nuisance parameters only touch that run, so only that run is
+re-simulated).
 
 At the optimum the Jacobian gives 95 % intervals (``s^2 (J^T J)^-1``), an identifiability
 check (intervals wider than the value, near-singular directions of the column-scaled
@@ -25,6 +31,7 @@ from scipy.interpolate import CubicSpline
 
 from hystdisc.errors import HystdiscError
 from hystdisc.fitting.data import FitData
+from hystdisc.fitting.jacobian import difference_jacobian, exact_jacobian
 from hystdisc.fitting.lm import levenberg_marquardt
 from hystdisc.fitting.parametrization import Parametrization, SystemParametrization
 from hystdisc.fitting.quantized import quantization_information
@@ -34,8 +41,6 @@ from hystdisc.stats import bic as _bic
 Z95 = 1.959963984540054
 #: Levenberg-Marquardt iterations on the full data after the bulk fit, at least.
 POLISH_MIN_ITER = 2
-#: Samples simulated per compiled call of a Jacobian (bounds its scratch memory).
-JAC_CHUNK_SAMPLES = 2_000_000
 #: The bulk fit is used when the full data take this many times its integration work.
 BULK_MIN_GAIN = 2.0
 #: Relative cost change at which the bulk fit hands over to the full data.
@@ -44,6 +49,10 @@ BULK_TOL = 1e-5
 #: (a fold that leaves out a whole test condition moves the fit beyond what one linear
 #: step predicts).
 HELDOUT_STEPS = 2
+#: How the Jacobian is computed unless a fitter is told otherwise: ``"exact"`` (the
+#: forward sensitivities of the term kernels; forward differences for a state-space model)
+#: or ``"forward"`` (forward differences for every model).
+JACOBIAN = "exact"
 
 
 @dataclass
@@ -145,16 +154,31 @@ class OutputErrorFitter:
     max_nfev : int
         Limit of Jacobian evaluations (Levenberg-Marquardt iterations).
     rel_step : float
-        Relative step of the forward differences.
+        Relative step of the forward differences (and of a channel delay's column).
+    jacobian_mode : {"exact", "forward"}, optional
+        How :meth:`jacobian` is computed (default :data:`JACOBIAN`): ``"exact"`` uses the
+        forward sensitivities of the term kernels for a model in term form (forward
+        differences for a state-space model), ``"forward"`` forward differences always.
     """
 
     def __init__(
-        self, data: FitData, par: Parametrization, max_nfev: int = 60, rel_step: float = 1e-6
+        self,
+        data: FitData,
+        par: Parametrization,
+        max_nfev: int = 60,
+        rel_step: float = 1e-6,
+        jacobian_mode: str | None = None,
     ) -> None:
+        mode = JACOBIAN if jacobian_mode is None else jacobian_mode
+        if mode not in ("exact", "forward"):
+            raise HystdiscError(f"unknown Jacobian mode '{mode}'; fix: use exact or forward")
         self.data = data
         self.par = par
         self.max_nfev = max_nfev
         self.rel_step = rel_step
+        self.jacobian_mode = mode
+        #: The Jacobian is taken from the kernels' sensitivities (a term-form model).
+        self.exact = mode == "exact" and not isinstance(par, SystemParametrization)
         self.npar = len(par.names)
         self.state = par.has_state()
         self.nnu = data.n_nuisance(self.state)
@@ -213,65 +237,24 @@ class OutputErrorFitter:
         )
         return self._resid_from(preds, runs)
 
-    def jacobian(self, v):
-        """Forward-difference Jacobian of :meth:`residuals` (masked rows, all of ``v``).
+    def jacobian(self, v: np.ndarray) -> np.ndarray:
+        """Jacobian of :meth:`residuals` (masked rows, all of ``v``): exact for a model in
+        term form (the kernels' sensitivities,
+        :func:`~hystdisc.fitting.jacobian.exact_jacobian`) unless the fitter was told
+        ``jacobian_mode="forward"``; forward differences (:meth:`difference_jacobian`)
+        otherwise, or where the simulation diverges."""
+        if self.exact:
+            x, nu = self._split(v)
+            Jm = exact_jacobian(self.data, self.par, x, nu, self.state, self.masks, self.rel_step)
+            if Jm is not None:
+                return Jm
+        return self.difference_jacobian(v)
 
-        Every column of a run is simulated in one compiled call with that run's base; the
-        runs are simulated in groups of about :data:`JAC_CHUNK_SAMPLES` samples, so the
-        memory beyond the Jacobian itself does not grow with the data.
-        """
+    def difference_jacobian(self, v: np.ndarray) -> np.ndarray:
+        """Forward-difference Jacobian of :meth:`residuals` (masked rows, all of ``v``; see
+        :func:`~hystdisc.fitting.jacobian.difference_jacobian`)."""
         x, nu = self._split(v)
-        R = self.data.n_runs
-        steps = self.rel_step * np.maximum(np.abs(v), 1e-3 * (np.abs(v).max() + 1e-12))
-        steps = np.maximum(steps, 1e-10)
-        tm0 = self.par.model(x)
-        tms = []
-        for j in range(self.npar):
-            xj = x.copy()
-            xj[j] += steps[j]
-            if xj[j] > self.par.upper[j]:
-                xj[j] -= 2 * steps[j]
-            tms.append(self.par.model(xj))
-        Jm = np.zeros((self.row_offsets[-1], len(v)))
-        group: list[int] = []
-        size = 0
-        for r in range(R):
-            group.append(r)
-            size += self.data.t[r].size * (1 + self.npar + self.nnu)
-            if size >= JAC_CHUNK_SAMPLES or r == R - 1:
-                self._jacobian_runs(group, x, nu, steps, tm0, tms, Jm)
-                group, size = [], 0
-        return Jm
-
-    def _jacobian_runs(self, group, x, nu, steps, tm0, tms, Jm) -> None:
-        """Fill the rows of the runs ``group`` of the Jacobian ``Jm``."""
-        models, runs, nuis, cols = [], [], [], []
-        for r in group:
-            models.append(tm0)
-            runs.append(r)
-            nuis.append(nu[r])
-            cols.append(-1)
-            for j in range(self.npar):
-                models.append(tms[j])
-                runs.append(r)
-                nuis.append(nu[r])
-                cols.append(j)
-            for q in range(self.nnu):
-                nq = nu[r].copy()
-                nq[q] += steps[self.npar + r * self.nnu + q]
-                models.append(tm0)
-                runs.append(r)
-                nuis.append(nq)
-                cols.append(self.npar + r * self.nnu + q)
-        preds = self.par.simulate(self.data, models, runs, nuis)
-        base = {}
-        for e, (r, j) in enumerate(zip(runs, cols, strict=True)):
-            if j < 0:
-                base[r] = preds[e]
-                continue
-            h = steps[j] if j >= self.npar or x[j] + steps[j] <= self.par.upper[j] else -steps[j]
-            d = (preds[e] - base[r])[self.masks[r]] / h
-            Jm[self.row_offsets[r] : self.row_offsets[r + 1], j] = d
+        return difference_jacobian(self.data, self.par, x, nu, self.masks, self.rel_step)
 
     def fit(self, heldout: bool = True) -> OEFit:
         """Levenberg-Marquardt from the parametrization's start; intervals, BIC and (with
@@ -289,7 +272,9 @@ class OutputErrorFitter:
         bulk = self.data.bulk()
         coarse = None
         if bulk is not None:
-            coarse = OutputErrorFitter(bulk, self.par, self.max_nfev, self.rel_step)
+            coarse = OutputErrorFitter(
+                bulk, self.par, self.max_nfev, self.rel_step, self.jacobian_mode
+            )
             # a stiff model needs as many sub-steps per second on either grid: the bulk
             # only pays when it integrates with clearly less work (deterministic count)
             w_full: list = []
@@ -344,7 +329,11 @@ class OutputErrorFitter:
         hi = np.concatenate([self.par.upper, np.full(self.nnu * self.data.n_runs, np.inf)])
         # a state-space model is screened on every sample, as it is fitted (see fit)
         bulk = None if isinstance(self.par, SystemParametrization) else self.data.bulk()
-        fitter = self if bulk is None else OutputErrorFitter(bulk, self.par, max_nfev)
+        fitter = (
+            self
+            if bulk is None
+            else OutputErrorFitter(bulk, self.par, max_nfev, jacobian_mode=self.jacobian_mode)
+        )
         try:
             with np.errstate(all="ignore"):
                 v, _, _ = levenberg_marquardt(
@@ -504,7 +493,9 @@ class OutputErrorFitter:
         if HELDOUT_STEPS < 1:
             return x
         train = [r for r in range(self.data.n_runs) if r not in fold]
-        sub = OutputErrorFitter(self.data.subset(train), self.par, self.max_nfev, self.rel_step)
+        sub = OutputErrorFitter(
+            self.data.subset(train), self.par, self.max_nfev, self.rel_step, self.jacobian_mode
+        )
         _, nu = self._split(v_gn)
         v0 = np.concatenate([x, nu[train].ravel()])
         free = np.full(sub.nnu * len(train), np.inf)

@@ -7,6 +7,8 @@ the error-controlled integrator. Both return each entry's predicted output as th
 acquisition records it (a channel delay and a declared filter applied:
 :func:`~hystdisc.fitting.measurement.measured_output`), with a diverged entry's non-finite
 samples replaced by a large finite value the optimizer backs away from.
+:func:`simulate_sensitivities` runs one term model with the exact derivatives of its
+output (the output-error Jacobian).
 """
 
 from __future__ import annotations
@@ -22,9 +24,12 @@ from hystdisc.models import TermModel
 from hystdisc.models.compiled import N_BASE, base_coefficients
 from hystdisc.models.system import StateSpaceModel
 from hystdisc.simulation import driven_shared, mech_batch, simulate_system
+from hystdisc.simulation.batch import driven_sens_batch, mech_sens_batch
 
 #: Sub-step ratio used while fitting (errors ~1e-6 of the signal, far below any noise).
 FIT_RATIO = 0.4
+#: Fewest sub-steps per sample interval while fitting.
+FIT_MIN_SUB = 1
 #: Sub-step cap while fitting: a candidate with a near-discontinuous state (a Dahl rate
 #: fitted to Bingham data) is not worth resolving exactly inside the optimizer.
 FIT_MAX_SUB = 8
@@ -38,6 +43,59 @@ SYSTEM_ATOL = 1e-13
 SYSTEM_MAX_STEPS = 200
 #: What a diverged prediction is replaced by.
 DIVERGED = 1e6
+
+
+def kernel_vectors(data: FitData, models: list[TermModel], runs: list[int]) -> np.ndarray:
+    """Each (model, run) entry's vector as the term kernels take it: the base coefficients
+    (current folded in), the hysteresis coefficients, ``n`` and ``J`` (1 where the
+    experiment does not identify it), numbered as the sensitivity directions
+    (:mod:`hystdisc.simulation.sensitivity`). Shape ``(entries, N_BASE + 7)``."""
+    out = np.empty((len(runs), N_BASE + 7))
+    inertia = data.exp.inertia_identifiable
+    for e, (tm, r) in enumerate(zip(models, runs, strict=True)):
+        out[e, :N_BASE] = base_coefficients(tm, data.currents[r])
+        out[e, N_BASE : N_BASE + 5] = tm.hysteresis_vector()
+        out[e, N_BASE + 5] = tm.n
+        out[e, N_BASE + 6] = tm.J if inertia else 1.0
+    return out
+
+
+def _split_vectors(vec: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The kernels' ``coef, b, n, J`` (contiguous) from :func:`kernel_vectors` rows."""
+    parts = (vec[:, :N_BASE], vec[:, N_BASE : N_BASE + 5], vec[:, -2], vec[:, -1])
+    return tuple(np.ascontiguousarray(a) for a in parts)
+
+
+def _kernel_inputs(data: FitData, runs: list[int], nuis: list[np.ndarray]) -> dict:
+    """The samples of the entries' runs, concatenated, and the step controls of a fit: the
+    arguments of the batch kernels besides the model (and, driven, the entries' runs)."""
+    exp = data.exp
+    steps = data.run_steps()
+    # the sub-step cap is per measured sample interval: a decimated run gets q times more
+    max_sub = np.array([FIT_MAX_SUB * steps[r] for r in runs], dtype=np.int64)
+    offsets = np.zeros(len(runs) + 1, dtype=np.int64)
+    offsets[1:] = np.cumsum([len(data.t[r]) for r in runs])
+    out: dict = {
+        "t": np.concatenate([data.t[r] for r in runs]),
+        "offsets": offsets,
+        "steps": {"ratio": FIT_RATIO, "min_sub": FIT_MIN_SUB, "max_sub": max_sub},
+    }
+    if exp.motion_imposed:
+        out["theta"] = np.concatenate([data.theta[r] for r in runs])
+        out["theta_dot"] = np.concatenate([data.theta_dot[r] for r in runs])
+        return out
+    du = None
+    if exp.has_input and data.hold == "cubic":
+        slopes = data.input_slopes()
+        du = np.concatenate([slopes[r] for r in runs])
+    out["u"] = np.concatenate([data.u[r] for r in runs])
+    out["start"] = (
+        np.array([v[0] for v in nuis]),
+        np.array([v[1] if len(v) > 1 else 0.0 for v in nuis]),
+        np.array([v[2] if len(v) > 2 else 0.0 for v in nuis]),
+    )
+    out["mech"] = {"hold": data.hold, "du": du}
+    return out
 
 
 def simulate_entries(
@@ -55,67 +113,29 @@ def simulate_entries(
     ``work_out`` the integration work of each entry (see :func:`~hystdisc.simulation.mech_batch`).
     """
     ne = len(runs)
-    exp = data.exp
     steps = data.run_steps()
-    # the sub-step cap is per measured sample interval: a decimated run gets q times more
-    max_sub = np.array([FIT_MAX_SUB * steps[r] for r in runs], dtype=np.int64)
-    coef = np.empty((ne, N_BASE))
-    b = np.empty((ne, 5))
-    n = np.empty(ne)
-    J = np.empty(ne)
-    for e, (tm, r) in enumerate(zip(models, runs, strict=True)):
-        coef[e] = base_coefficients(tm, data.currents[r])
-        b[e] = tm.hysteresis_vector()
-        n[e] = tm.n
-        J[e] = tm.J if exp.inertia_identifiable else 1.0
-    offsets = np.zeros(ne + 1, dtype=np.int64)
-    offsets[1:] = np.cumsum([len(data.t[r]) for r in runs])
+    vec = kernel_vectors(data, models, runs)
+    coef, b, n, J = _split_vectors(vec)
+    k = _kernel_inputs(data, runs, nuis)
+    t, offsets = k["t"], k["offsets"]
     work = np.zeros(ne, dtype=np.int64)
-    t = np.concatenate([data.t[r] for r in runs])
     with np.errstate(all="ignore"):
-        if exp.motion_imposed:
-            th = np.concatenate([data.theta[r] for r in runs])
-            w = np.concatenate([data.theta_dot[r] for r in runs])
+        if data.exp.motion_imposed:
             out, _, status = driven_shared(
                 coef,
                 b,
                 n,
                 t,
-                th,
-                w,
+                k["theta"],
+                k["theta_dot"],
                 offsets,
                 np.asarray(runs),
-                ratio=FIT_RATIO,
-                min_sub=1,
-                max_sub=max_sub,
                 work=work,
+                **k["steps"],
             )
         else:
-            u = np.concatenate([data.u[r] for r in runs])
-            du = None
-            if exp.has_input and data.hold == "cubic":
-                slopes = data.input_slopes()
-                du = np.concatenate([slopes[r] for r in runs])
-            th0 = np.array([v[0] for v in nuis])
-            w0 = np.array([v[1] if len(v) > 1 else 0.0 for v in nuis])
-            z0 = np.array([v[2] if len(v) > 2 else 0.0 for v in nuis])
             out, _, _, status = mech_batch(
-                coef,
-                b,
-                n,
-                J,
-                t,
-                u,
-                offsets,
-                th0,
-                w0,
-                z0,
-                hold=data.hold,
-                ratio=FIT_RATIO,
-                min_sub=1,
-                max_sub=max_sub,
-                du=du,
-                work=work,
+                coef, b, n, J, t, k["u"], offsets, *k["start"], **k["mech"], **k["steps"], work=work
             )
     res = [out[offsets[e] : offsets[e + 1]] for e in range(ne)]
     bad = []
@@ -131,6 +151,62 @@ def simulate_entries(
     if work_out is not None:
         work_out.extend(int(w) for w in work)
     return res
+
+
+def simulate_sensitivities(
+    data: FitData,
+    model: TermModel,
+    runs: list[int],
+    nuis: list[np.ndarray],
+    act: np.ndarray,
+) -> tuple[list[np.ndarray], list[np.ndarray], list[bool]]:
+    """One term model on the runs ``runs`` with its forward sensitivities, in one compiled
+    call (:func:`~hystdisc.simulation.batch.mech_sens_batch`,
+    :func:`~hystdisc.simulation.batch.driven_sens_batch`).
+
+    Parameters
+    ----------
+    data : FitData
+        The runs.
+    model : TermModel
+        The model.
+    runs : list of int
+        The runs to simulate.
+    nuis : list of ndarray
+        Each run's initial-state values (as for :func:`simulate_entries`).
+    act : ndarray of int
+        The directions wanted: entries of :func:`kernel_vectors` and the initial states
+        (numbered as in :mod:`hystdisc.simulation.sensitivity`).
+
+    Returns
+    -------
+    outputs : list of ndarray
+        Each run's simulated output before the measurement chain (the model's ``theta``,
+        or a driven run's torque; :func:`~hystdisc.fitting.measurement.measured_output`
+        is linear in it at a fixed delay).
+    sensitivities : list of ndarray
+        Each run's derivatives of the output, shape ``(samples, len(act))``.
+    diverged : list of bool
+        Each run's divergence flag (its output and sensitivities are then not finite).
+    """
+    vec = kernel_vectors(data, [model] * len(runs), runs)
+    coef, b, n, J = _split_vectors(vec)
+    k = _kernel_inputs(data, runs, nuis)
+    t, offsets = k["t"], k["offsets"]
+    with np.errstate(all="ignore"):
+        if data.exp.motion_imposed:
+            motion = (k["theta"], k["theta_dot"], offsets, np.zeros(len(runs)))
+            out, _, sens, status = driven_sens_batch(coef, b, n, t, *motion, act, **k["steps"])
+        else:
+            out, _, _, sens, status = mech_sens_batch(
+                coef, b, n, J, t, k["u"], offsets, *k["start"], act, **k["mech"], **k["steps"]
+            )
+    cut = [slice(offsets[e], offsets[e + 1]) for e in range(len(runs))]
+    bad = [
+        bool(status[e]) or not (np.all(np.isfinite(out[c])) and np.all(np.isfinite(sens[c])))
+        for e, c in enumerate(cut)
+    ]
+    return [out[c] for c in cut], [sens[c] for c in cut], bad
 
 
 def _system_inputs(data: FitData, r: int, model: StateSpaceModel) -> dict[str, np.ndarray]:

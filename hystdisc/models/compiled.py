@@ -138,3 +138,95 @@ def rate_stiffness(b, n, w, z):
         dz += aw * (n * abs(b[2]) * pm1 + (n + 1.0) * abs(b[3]) * p + n * abs(b[4]) * pm1)
         dw += abs(b[2]) * p + abs(b[3]) * az * p + abs(b[4]) * p
     return dz, dw
+
+
+# ----------------------------------------------------------------------------- derivatives
+# Partial derivatives of term_torque and term_rate, for the forward sensitivities of the
+# simulation kernels (hystdisc.simulation.sensitivity). Every partial with respect to a
+# coefficient is written to ``g``; ``need`` flags the ones wanted even where the term is
+# absent (a zero coefficient whose costly function is otherwise skipped).
+# Where a function has a kink (|w| at w = 0, |z|^n at z = 0) the one-sided slopes are
+# averaged (sign(0) = 0): the kernels evaluate there on a set of measure zero.
+
+
+@numba.njit(cache=True, inline="always")
+def _sign(x):
+    return 1.0 if x > 0.0 else (-1.0 if x < 0.0 else 0.0)
+
+
+@numba.njit(cache=True, inline="always")
+def torque_grad(c, th, w, z, eps, need, g):
+    """Partials of :func:`term_torque`: returns ``(dT/dtheta, dT/dtheta_dot, dT/dz)`` and
+    writes ``dT/dc[i]`` to ``g[i]`` (``need``: :data:`N_BASE` flags)."""
+    aw = abs(w)
+    sw = _sign(w)
+    dth = c[0]
+    dw = c[1] + c[3] * sw * z + 2.0 * c[5] * aw
+    dz = c[2] + c[3] * aw
+    g[4] = 0.0
+    if c[4] != 0.0 or need[4]:
+        tnh = math.tanh(w / eps)
+        dw += c[4] * (1.0 - tnh * tnh) / eps
+        g[4] = tnh
+    if c[6] != 0.0:
+        dth += 3.0 * c[6] * th * th
+    if c[8] != 0.0 or need[8]:
+        q = w * w + eps * eps
+        a = 0.5 * (c[9] - 1.0)
+        qa = q**a
+        dw += c[8] * qa * (1.0 + 2.0 * a * w * w / q)
+        g[8] = w * qa
+        g[9] = c[8] * w * qa * 0.5 * math.log(q)
+    else:
+        g[8] = 0.0
+        g[9] = 0.0
+    g[0] = th
+    g[1] = w
+    g[2] = z
+    g[3] = aw * z
+    g[5] = w * aw
+    g[6] = th * th * th
+    g[7] = 1.0
+    return dth, dw, dz
+
+
+@numba.njit(cache=True, inline="always")
+def rate_grad(b, n, w, z, need, g):
+    """Partials of :func:`term_rate`: returns ``(dR/dtheta_dot, dR/dz)`` and writes
+    ``dR/db[0..4]`` to ``g[0..4]``, ``dR/dn`` to ``g[5]`` (``need``: 6 flags, same order)."""
+    aw = abs(w)
+    sw = _sign(w)
+    dw = b[0] + b[1] * sw * z
+    dz = b[1] * aw
+    g[0] = w
+    g[1] = aw * z
+    if b[2] != 0.0 or b[3] != 0.0 or b[4] != 0.0 or need[2] or need[3] or need[4] or need[5]:
+        az = abs(z)
+        sz = _sign(z)
+        p = 0.0
+        pm1 = 0.0  # |z|^(n-1); its value at 0 is the slope's mean there (a kink for n = 1)
+        lz = 0.0
+        if az > 0.0:
+            if n == 1.0:
+                p = az
+                pm1 = 1.0
+            elif n == 2.0:
+                p = az * az
+                pm1 = az
+            else:
+                p = az**n
+                pm1 = p / az
+            if need[5]:
+                lz = math.log(az)
+        dw += b[2] * p + b[3] * sw * z * p + b[4] * sw * sz * p
+        dz += b[2] * w * n * pm1 * sz + b[3] * aw * (1.0 + n) * p + b[4] * aw * n * pm1
+        g[2] = w * p
+        g[3] = aw * z * p
+        g[4] = aw * sz * p
+        g[5] = (b[2] * w + b[3] * aw * z + b[4] * aw * sz) * p * lz
+    else:
+        g[2] = 0.0
+        g[3] = 0.0
+        g[4] = 0.0
+        g[5] = 0.0
+    return dw, dz

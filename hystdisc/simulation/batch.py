@@ -1,7 +1,8 @@
 """Batched simulation of term models: many runs (and parameter sets) in one compiled call.
 
 The low-level entry points of the output-error fit (:func:`mech_batch`,
-:func:`driven_batch`, :func:`driven_shared`) and of stage 1 (:func:`integrate_z_flat`).
+:func:`driven_batch`, :func:`driven_shared`; with forward sensitivities
+:func:`mech_sens_batch`, :func:`driven_sens_batch`) and of stage 1 (:func:`integrate_z_flat`).
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from hystdisc.simulation.kernels import (
     _mech_batch,
     _torque_series,
 )
+from hystdisc.simulation.sensitivity import _driven_sens_batch, _mech_sens_batch
 
 
 def _per_run(max_sub, nruns: int) -> np.ndarray:
@@ -159,6 +161,95 @@ def driven_batch(
         work,
     )
     return tq, z, status
+
+
+def _directions(act) -> np.ndarray:
+    """The sensitivity directions as the kernels take them (see
+    :mod:`hystdisc.simulation.sensitivity`)."""
+    return np.ascontiguousarray(act, dtype=np.int64).reshape(-1)
+
+
+def mech_sens_batch(
+    coef: np.ndarray,
+    b: np.ndarray,
+    n: np.ndarray,
+    J: np.ndarray,
+    t: np.ndarray,
+    u: np.ndarray,
+    offsets: np.ndarray,
+    theta0: np.ndarray,
+    theta_dot0: np.ndarray,
+    z0: np.ndarray,
+    act: np.ndarray,
+    hold: str = "cubic",
+    eps: float = SIGN_EPS,
+    ratio: float = STEP_RATIO,
+    min_sub: int = MIN_SUBSTEPS,
+    max_sub: int | np.ndarray = MAX_SUBSTEPS,
+    du: np.ndarray | None = None,
+    work: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`mech_batch` with the forward sensitivities of ``theta``.
+
+    ``act`` lists the directions wanted (term-vector entries and initial states, numbered as
+    in :mod:`hystdisc.simulation.sensitivity`). Returns flat ``theta, theta_dot, z`` (the
+    same to the last bit as :func:`mech_batch`'s), ``dtheta`` of shape
+    ``(samples, len(act))`` and the per-run status.
+    """
+    if hold not in HOLDS:
+        raise HystdiscError(f"unknown input hold '{hold}'; fix: use one of {', '.join(HOLDS)}")
+    if hold != "cubic":
+        du = np.zeros(1)
+    elif du is None:
+        du = input_slopes(t, u, offsets)
+    act = _directions(act)
+    J, theta0, theta_dot0, z0 = (np.asarray(a, dtype=float) for a in (J, theta0, theta_dot0, z0))
+    th, w, z = np.empty_like(t), np.empty_like(t), np.empty_like(t)
+    sens = np.empty((t.size, act.size))
+    status = _call_kernel(
+        _mech_sens_batch,
+        (coef, b, n),
+        (J, t, u, du, offsets, theta0, theta_dot0, z0, HOLDS[hold]),
+        (act, th, w, z, sens),
+        len(offsets) - 1,
+        (eps, ratio, min_sub, max_sub),
+        work,
+    )
+    return th, w, z, sens, status
+
+
+def driven_sens_batch(
+    coef: np.ndarray,
+    b: np.ndarray,
+    n: np.ndarray,
+    t: np.ndarray,
+    theta: np.ndarray,
+    theta_dot: np.ndarray,
+    offsets: np.ndarray,
+    z0: np.ndarray,
+    act: np.ndarray,
+    eps: float = SIGN_EPS,
+    ratio: float = STEP_RATIO,
+    min_sub: int = MIN_SUBSTEPS,
+    max_sub: int | np.ndarray = MAX_SUBSTEPS,
+    work: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`driven_batch` with the forward sensitivities of the torque along the
+    directions ``act`` (as :func:`mech_sens_batch`): flat ``torque, z``, ``dtorque`` of
+    shape ``(samples, len(act))`` and the status."""
+    act = _directions(act)
+    tq, z = np.empty_like(t), np.empty_like(t)
+    sens = np.empty((t.size, act.size))
+    status = _call_kernel(
+        _driven_sens_batch,
+        (coef, b, n),
+        (t, theta, theta_dot, offsets, np.asarray(z0, dtype=float)),
+        (act, tq, z, sens),
+        len(offsets) - 1,
+        (eps, ratio, min_sub, max_sub),
+        work,
+    )
+    return tq, z, sens, status
 
 
 def driven_shared(

@@ -1,0 +1,228 @@
+"""The output-error Jacobian: exact for a model in term form, else forward differences.
+
+The compiled kernels integrate, with a run's output, its derivatives along the entries of
+the run's term vector and its initial state (:func:`~hystdisc.fitting.simulate.simulate_sensitivities`,
+:mod:`hystdisc.simulation.sensitivity`). The free parameters reach the term vectors
+through the parametrization's algebra (the family's map, the current laws folded in per
+run), whose derivative is taken here by central differences, no simulation; the chain
+rule and the measurement chain (a fixed delay and a filter are linear in the output) give
+the Jacobian's columns. A parameter that moves the channel delay adds the forward
+difference of the measured output in the delay alone.
+
+:func:`difference_jacobian` takes forward differences instead (any model: one simulation
+per column, every column of a run in one batched call).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from hystdisc.fitting.data import FitData
+from hystdisc.fitting.measurement import measured_output
+from hystdisc.fitting.parametrization import Parametrization
+from hystdisc.fitting.simulate import kernel_vectors, simulate_sensitivities
+from hystdisc.models import TermModel
+from hystdisc.simulation.sensitivity import DIR_TH0, DIR_W0, DIR_Z0
+
+#: Samples simulated per compiled call of a Jacobian (bounds its scratch memory).
+JAC_CHUNK_SAMPLES = 2_000_000
+#: Relative step of the central differences of the map from the free parameters to the
+#: term vectors (algebra only, no simulation: most of it linear).
+MAP_STEP = 1e-5
+#: The sensitivity direction of each initial-state (nuisance) parameter.
+START_DIRECTIONS = {"theta0": DIR_TH0, "theta_dot0": DIR_W0, "z0": DIR_Z0}
+
+
+def difference_steps(v: np.ndarray, rel_step: float) -> np.ndarray:
+    """The forward-difference steps of the entries of ``v`` (relative, with a floor at
+    ``1e-3`` of the largest entry)."""
+    steps = rel_step * np.maximum(np.abs(v), 1e-3 * (np.abs(v).max() + 1e-12))
+    return np.maximum(steps, 1e-10)
+
+
+def map_derivative(
+    data: FitData, par: Parametrization, x: np.ndarray, tm0: TermModel
+) -> tuple[np.ndarray, np.ndarray]:
+    """Derivative of every run's kernel vector with respect to the free parameters.
+
+    Central differences of :func:`~hystdisc.fitting.simulate.kernel_vectors` of
+    ``par.model(x)`` (one-sided, second order, where a step would leave the bounds); an
+    entry the parameter does not move gets exactly 0.
+
+    Returns
+    -------
+    D : ndarray
+        Shape ``(runs, vector entries, parameters)``.
+    delays : ndarray of bool
+        The parameters that move the model's channel delay.
+    """
+    R = data.n_runs
+    runs = list(range(R))
+    V0 = kernel_vectors(data, [tm0] * R, runs)
+    D = np.zeros((R, V0.shape[1], x.size))
+    delays = np.zeros(x.size, dtype=bool)
+    scale = 1e-3 * (np.abs(x).max() + 1e-12)
+    for j in range(x.size):
+        h = MAP_STEP * max(abs(x[j]), scale)
+        if x[j] + h <= par.upper[j] and x[j] - h >= par.lower[j]:
+            offs, weights = (h, -h), (0.5 / h, -0.5 / h)
+        elif x[j] + h <= par.upper[j]:
+            offs, weights = (h, 2 * h), (2.0 / h, -0.5 / h)
+        else:
+            offs, weights = (-h, -2 * h), (-2.0 / h, 0.5 / h)
+        for o, wgt in zip(offs, weights, strict=True):
+            xj = x.copy()
+            xj[j] += o
+            tm = par.model(xj)
+            # the weights sum to 0 with x's own: differences from V0 keep unmoved entries 0
+            D[:, :, j] += wgt * (kernel_vectors(data, [tm] * R, runs) - V0)
+            delays[j] |= tm.delay != tm0.delay
+    return D, delays
+
+
+def exact_jacobian(
+    data: FitData,
+    par: Parametrization,
+    x: np.ndarray,
+    nu: np.ndarray,
+    state: bool,
+    masks: list[np.ndarray],
+    rel_step: float,
+) -> np.ndarray | None:
+    """The output-error Jacobian at the free parameters ``x`` and initial states ``nu``.
+
+    Parameters
+    ----------
+    data : FitData
+        The runs.
+    par : Parametrization
+        A parametrization of a term-form model (it simulates through
+        :func:`~hystdisc.fitting.simulate.simulate_entries`).
+    x : ndarray
+        The free parameters.
+    nu : ndarray
+        Each run's initial-state parameters, shape ``(runs, nuisance)``.
+    state : bool
+        The model has a hysteretic state (its initial value may be a nuisance parameter).
+    masks : list of ndarray
+        Each run's samples that enter the residual.
+    rel_step : float
+        Relative forward-difference step of a parameter that moves the channel delay.
+
+    Returns
+    -------
+    ndarray or None
+        Rows: the masked samples, run after run; columns: ``x``, then each run's initial
+        states. None when a run diverges (its sensitivities are then meaningless).
+    """
+    R, k = data.n_runs, x.size
+    nnu = nu.shape[1]
+    tm0 = par.model(x)
+    D, delays = map_derivative(data, par, x, tm0)
+    moving = [d for d in range(D.shape[1]) if np.any(D[:, d, :] != 0.0)]
+    starts = [START_DIRECTIONS[p] for p in data.exp.initial_state(state)]
+    act = np.array(moving + starts, dtype=np.int64)
+    offsets = np.cumsum([0] + [int(m.sum()) for m in masks])
+    Jm = np.zeros((offsets[-1], k + R * nnu))
+    group: list[int] = []
+    size = 0
+    for r in range(R):
+        group.append(r)
+        size += data.t[r].size * (1 + act.size)
+        if size < JAC_CHUNK_SAMPLES and r < R - 1:
+            continue
+        ys, sens, bad = simulate_sensitivities(data, tm0, group, [nu[q] for q in group], act)
+        if any(bad):
+            return None
+        for q, y, S in zip(group, ys, sens, strict=True):
+            cols = np.empty((y.size, k + nnu))
+            cols[:, :k] = S[:, : len(moving)] @ D[q][moving]
+            cols[:, k:] = S[:, len(moving) :]
+            _measured_columns(data, par, q, x, tm0, y, cols, delays, rel_step)
+            rows = slice(offsets[q], offsets[q + 1])
+            Jm[rows, :k] = cols[masks[q], :k]
+            Jm[rows, k + q * nnu : k + (q + 1) * nnu] = cols[masks[q], k:]
+        group, size = [], 0
+    return Jm
+
+
+def _measured_columns(data, par, r, x, tm0, y, cols, delays, rel_step) -> None:
+    """Run ``r``'s derivative columns ``cols`` of the simulated output ``y`` through the
+    measurement chain (in place), plus the delay's share of the ``delays`` columns."""
+    t = data.t[r]
+    window = data.run_filters()[r]
+    step = data.run_steps()[r]
+    if tm0.delay != 0.0 or window > 1:
+        for q in range(cols.shape[1]):
+            cols[:, q] = measured_output(t, cols[:, q], tm0.delay, window, step)
+    if not delays.any():
+        return
+    y0 = measured_output(t, y, tm0.delay, window, step)
+    # forward differences in the delay alone (the step rule of difference_jacobian, its
+    # floor from the free parameters)
+    steps = difference_steps(x, rel_step)
+    for j in np.flatnonzero(delays):
+        h = steps[j] if x[j] + steps[j] <= par.upper[j] else -steps[j]
+        xj = x.copy()
+        xj[j] += h
+        yj = measured_output(t, y, par.model(xj).delay, window, step)
+        cols[:, j] += (yj - y0) / h
+
+
+def difference_jacobian(
+    data: FitData,
+    par: Parametrization,
+    x: np.ndarray,
+    nu: np.ndarray,
+    masks: list[np.ndarray],
+    rel_step: float,
+) -> np.ndarray:
+    """Forward-difference output-error Jacobian (arguments and result as
+    :func:`exact_jacobian`; a step that would pass an upper bound is taken backwards).
+
+    Every column of a run is simulated in one call with that run's base (a run's initial
+    states touch only that run); the runs are simulated in groups of about
+    :data:`JAC_CHUNK_SAMPLES` samples, so the memory beyond the Jacobian itself does not
+    grow with the data.
+    """
+    R, k, nnu = data.n_runs, x.size, nu.shape[1]
+    steps = difference_steps(np.concatenate([x, nu.ravel()]), rel_step)
+    tm0 = par.model(x)
+    tms = []
+    for j in range(k):
+        xj = x.copy()
+        xj[j] += steps[j]
+        if xj[j] > par.upper[j]:
+            xj[j] -= 2 * steps[j]
+        tms.append(par.model(xj))
+    offsets = np.cumsum([0] + [int(m.sum()) for m in masks])
+    Jm = np.zeros((offsets[-1], k + R * nnu))
+    group: list[int] = []
+    size = 0
+    for r in range(R):
+        group.append(r)
+        size += data.t[r].size * (1 + k + nnu)
+        if size < JAC_CHUNK_SAMPLES and r < R - 1:
+            continue
+        models, runs, nuis, cols = [], [], [], []
+        for q in group:
+            entries = [(tm0, nu[q], -1)] + [(tms[j], nu[q], j) for j in range(k)]
+            for i in range(nnu):
+                nq = nu[q].copy()
+                nq[i] += steps[k + q * nnu + i]
+                entries.append((tm0, nq, k + q * nnu + i))
+            for tm, nq, j in entries:
+                models.append(tm)
+                runs.append(q)
+                nuis.append(nq)
+                cols.append(j)
+        preds = par.simulate(data, models, runs, nuis)
+        base = {}
+        for e, (q, j) in enumerate(zip(runs, cols, strict=True)):
+            if j < 0:
+                base[q] = preds[e]
+                continue
+            h = steps[j] if j >= k or x[j] + steps[j] <= par.upper[j] else -steps[j]
+            Jm[offsets[q] : offsets[q + 1], j] = (preds[e] - base[q])[masks[q]] / h
+        group, size = [], 0
+    return Jm
