@@ -13,7 +13,7 @@ family:
    channels (driven, forced).
 2. **Diagnosis** (:func:`~hystdisc.closing.scores.score_effects`): the score (Lagrange-multiplier) test in
    output-error space. All candidates are appended to the model at value 0, and one
-   batched forward-difference Jacobian at the current optimum gives each effect's
+   Jacobian of the fitter at the current optimum gives each effect's
    signature ``g`` (how the simulated output moves when the effect is switched on) beside
    the model's own columns ``A`` (parameters and initial angles). ``g`` is projected out of
    the span of ``A``; what the projected column explains of the residual is the

@@ -1,9 +1,10 @@
 """Diagnosis of the residual: how much each catalogued effect would explain.
 
 The score (Lagrange-multiplier) test in output-error space (:func:`score_effects`): all
-candidates are appended to the model at value 0, and one batched forward-difference
-Jacobian at the current optimum gives each effect's signature ``g`` (how the simulated
-output moves when the effect is switched on) beside the model's own columns ``A``
+candidates are appended to the model at value 0, and one Jacobian of the fitter
+(:meth:`~hystdisc.fitting.OutputErrorFitter.jacobian`) at the current optimum gives each
+effect's signature ``g`` (how the simulated output moves when the effect is switched on)
+beside the model's own columns ``A``
 (parameters and initial states). ``g`` is projected out of the span of ``A``; what the
 projected column explains of the residual is the Gauss-Newton predicted RSS reduction of
 adding the effect and refitting everything. Its share of the RSS is the effect's

@@ -3,8 +3,9 @@
 The model of a ``results.json`` is rebuilt as the parametrization its fit used
 (:func:`fitted_parametrization`: the same free parameters, bounds, fixed parameters and
 normalization), each run is simulated by the fitter's own simulator and the sensitivities
-``d y / d theta`` are the fitter's own forward-difference Jacobian
-(:meth:`hystdisc.fitting.OutputErrorFitter.jacobian`, relative step ``1e-6``), so the
+``d y / d theta`` are the fitter's own Jacobian
+(:meth:`hystdisc.fitting.OutputErrorFitter.jacobian`: exact sensitivities of the compiled
+kernels, or lockstep differences for a state-space model), so the
 information of a run is the one its intervals would come from. A run's initial state
 (a release's angle) is a nuisance parameter of that run only: its information on the
 model's parameters is the Schur complement ``A - B C^+ B^T`` of the run's block of
