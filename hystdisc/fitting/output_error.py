@@ -24,6 +24,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from hystdisc.errors import HystdiscError
+from hystdisc.fitting import system_jacobian
 from hystdisc.fitting.data import FitData
 from hystdisc.fitting.lm import levenberg_marquardt
 from hystdisc.fitting.parametrization import Parametrization, SystemParametrization
@@ -220,6 +221,12 @@ class OutputErrorFitter:
         runs are simulated in groups of about :data:`JAC_CHUNK_SAMPLES` samples, so the
         memory beyond the Jacobian itself does not grow with the data.
         """
+        # --- a state-space model: lockstep internal differentiation (system_jacobian.py)
+        if system_jacobian.applies(self.par):
+            return system_jacobian.system_jacobian(
+                self.data, self.par, v, self.rel_step, self.masks, self.row_offsets
+            )
+        # ---
         x, nu = self._split(v)
         R = self.data.n_runs
         steps = self.rel_step * np.maximum(np.abs(v), 1e-3 * (np.abs(v).max() + 1e-12))
