@@ -30,6 +30,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from hystdisc.errors import HystdiscError
+from hystdisc.fitting import system_jacobian
 from hystdisc.fitting.data import FitData
 from hystdisc.fitting.jacobian import difference_jacobian, exact_jacobian
 from hystdisc.fitting.lm import levenberg_marquardt
@@ -242,7 +243,12 @@ class OutputErrorFitter:
         term form (the kernels' sensitivities,
         :func:`~hystdisc.fitting.jacobian.exact_jacobian`) unless the fitter was told
         ``jacobian_mode="forward"``; forward differences (:meth:`difference_jacobian`)
-        otherwise, or where the simulation diverges."""
+        otherwise, or where the simulation diverges. A state-space model: lockstep
+        differences (:func:`~hystdisc.fitting.system_jacobian.system_jacobian`)."""
+        if self.jacobian_mode != "forward" and system_jacobian.applies(self.par):
+            return system_jacobian.system_jacobian(
+                self.data, self.par, v, self.rel_step, self.masks, self.row_offsets
+            )
         if self.exact:
             x, nu = self._split(v)
             Jm = exact_jacobian(self.data, self.par, x, nu, self.state, self.masks, self.rel_step)

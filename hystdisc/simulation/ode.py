@@ -67,11 +67,59 @@ def _input_at(U, k, f, out):
         out[j] = U[k, j] + (U[k + 1, j] - U[k, j]) * f
 
 
-def _integrate(x0, t, U, p, rtol, atol, X, Y, max_steps):
-    """Dormand–Prince 5(4) over the samples ``t``; returns 0 (ok) or 1 (failed).
+def _stages(x, U, k, tt, span, hh, p, ks, xt, u, x5):
+    """The first six stages of a Dormand–Prince step of size ``hh`` from ``x`` at ``t[k] +
+    tt`` into ``ks[:6]``, and the 5th-order solution into ``x5``."""
+    n = x.shape[0]
+    _input_at(U, k, tt / span, u)
+    rate(x, u, p, ks[0])  # noqa: F821
+    for s in range(1, 6):
+        for i in range(n):
+            acc = 0.0
+            if s == 1:
+                acc = _A2[0] * ks[0, i]
+            elif s == 2:
+                acc = _A3[0] * ks[0, i] + _A3[1] * ks[1, i]
+            elif s == 3:
+                acc = _A4[0] * ks[0, i] + _A4[1] * ks[1, i] + _A4[2] * ks[2, i]
+            elif s == 4:
+                acc = _A5[0] * ks[0, i] + _A5[1] * ks[1, i] + _A5[2] * ks[2, i] + _A5[3] * ks[3, i]
+            else:
+                acc = (
+                    _A6[0] * ks[0, i]
+                    + _A6[1] * ks[1, i]
+                    + _A6[2] * ks[2, i]
+                    + _A6[3] * ks[3, i]
+                    + _A6[4] * ks[4, i]
+                )
+            xt[i] = x[i] + hh * acc
+        _input_at(U, k, (tt + _C[s - 1] * hh) / span, u)
+        rate(xt, u, p, ks[s])  # noqa: F821
+    for i in range(n):
+        acc = 0.0
+        for s in range(6):
+            acc += _B[s] * ks[s, i]
+        x5[i] = x[i] + hh * acc
 
-    A template: the model's ``rate`` and ``observe`` are bound by
-    :func:`~hystdisc.simulation.specialize.specialize` (a cached kernel per model)."""
+
+def _error(x, x5, U, k, tt, span, hh, p, ks, u, rtol, atol):
+    """Scaled RMS error estimate of the step ``x -> x5`` whose first six stages are in
+    ``ks`` (the seventh goes into ``ks[6]``)."""
+    n = x.shape[0]
+    _input_at(U, k, (tt + hh) / span, u)
+    rate(x5, u, p, ks[6])  # noqa: F821
+    err = 0.0
+    for i in range(n):
+        e = 0.0
+        for s in range(7):
+            e += _E[s] * ks[s, i]
+        sc = atol + rtol * max(abs(x[i]), abs(x5[i]))
+        err += (hh * e / sc) ** 2
+    return np.sqrt(err / n) if n > 0 else 0.0  # a model without states (algebraic)
+
+
+def _integrate(x0, t, U, p, rtol, atol, X, Y, max_steps):
+    """Dormand–Prince 5(4) over the samples ``t``; returns 0 (ok) or 1 (failed)."""
     n = x0.shape[0]
     x = x0.copy()
     ks = np.zeros((7, n))
@@ -83,57 +131,14 @@ def _integrate(x0, t, U, p, rtol, atol, X, Y, max_steps):
     Y[0] = observe(x, u, p)  # noqa: F821
     h = (t[1] - t[0]) if t.shape[0] > 1 else 0.0
     for k in range(t.shape[0] - 1):
-        ta = t[k]
-        span = t[k + 1] - ta
+        span = t[k + 1] - t[k]
         tt = 0.0  # time since t[k]
         steps = 0
         while tt < span:
             hh = min(h, span - tt)
             cut = hh < h
-            _input_at(U, k, tt / span, u)
-            rate(x, u, p, ks[0])  # noqa: F821
-            for s in range(1, 6):
-                for i in range(n):
-                    acc = 0.0
-                    if s == 1:
-                        acc = _A2[0] * ks[0, i]
-                    elif s == 2:
-                        acc = _A3[0] * ks[0, i] + _A3[1] * ks[1, i]
-                    elif s == 3:
-                        acc = _A4[0] * ks[0, i] + _A4[1] * ks[1, i] + _A4[2] * ks[2, i]
-                    elif s == 4:
-                        acc = (
-                            _A5[0] * ks[0, i]
-                            + _A5[1] * ks[1, i]
-                            + _A5[2] * ks[2, i]
-                            + _A5[3] * ks[3, i]
-                        )
-                    else:
-                        acc = (
-                            _A6[0] * ks[0, i]
-                            + _A6[1] * ks[1, i]
-                            + _A6[2] * ks[2, i]
-                            + _A6[3] * ks[3, i]
-                            + _A6[4] * ks[4, i]
-                        )
-                    xt[i] = x[i] + hh * acc
-                _input_at(U, k, (tt + _C[s - 1] * hh) / span, u)
-                rate(xt, u, p, ks[s])  # noqa: F821
-            for i in range(n):
-                acc = 0.0
-                for s in range(6):
-                    acc += _B[s] * ks[s, i]
-                x5[i] = x[i] + hh * acc
-            _input_at(U, k, (tt + hh) / span, u)
-            rate(x5, u, p, ks[6])  # noqa: F821
-            err = 0.0
-            for i in range(n):
-                e = 0.0
-                for s in range(7):
-                    e += _E[s] * ks[s, i]
-                sc = atol + rtol * max(abs(x[i]), abs(x5[i]))
-                err += (hh * e / sc) ** 2
-            err = np.sqrt(err / n) if n > 0 else 0.0  # a model without states (algebraic)
+            _stages(x, U, k, tt, span, hh, p, ks, xt, u, x5)
+            err = _error(x, x5, U, k, tt, span, hh, p, ks, u, rtol, atol)
             steps += 1
             if not np.isfinite(err) or steps > max_steps:
                 return 1
@@ -148,6 +153,55 @@ def _integrate(x0, t, U, p, rtol, atol, X, Y, max_steps):
         X[k + 1] = x
         _input_at(U, k, 1.0, u)
         Y[k + 1] = observe(x, u, p)  # noqa: F821
+    return 0
+
+
+def _integrate_lockstep(X0, t, U, P, rtol, atol, Y, max_steps):
+    """:func:`_integrate` of the nominal copy (row 0 of the initial states ``X0`` and of
+    the parameter vectors ``P``) with every other copy taking exactly its steps.
+
+    Step sizes, rejections (a kink of the rate among them) and the ends at the samples
+    are decided by the nominal's error estimate alone; an accepted step is then taken by
+    each other copy with the same size (its six stages, no error estimate). The outputs
+    go into ``Y`` (copies x samples), the nominal's bit for bit those of
+    :func:`_integrate`. Returns 0 (ok) or 1 (the nominal failed).
+    """
+    m, n = X0.shape
+    x = X0.copy()
+    ks = np.zeros((7, n))
+    kc = np.zeros((7, n))
+    xt = np.empty(n)
+    x5 = np.empty(n)
+    u = np.empty(U.shape[1])
+    _input_at(U, 0, 0.0, u)
+    for c in range(m):
+        Y[c, 0] = observe(x[c], u, P[c])  # noqa: F821
+    h = (t[1] - t[0]) if t.shape[0] > 1 else 0.0
+    for k in range(t.shape[0] - 1):
+        span = t[k + 1] - t[k]
+        tt = 0.0
+        steps = 0
+        while tt < span:
+            hh = min(h, span - tt)
+            cut = hh < h
+            _stages(x[0], U, k, tt, span, hh, P[0], ks, xt, u, x5)
+            err = _error(x[0], x5, U, k, tt, span, hh, P[0], ks, u, rtol, atol)
+            steps += 1
+            if not np.isfinite(err) or steps > max_steps:
+                return 1
+            fac = 5.0 if err == 0.0 else min(5.0, max(0.2, 0.9 * err**-0.2))
+            if err <= 1.0:
+                x[0] = x5
+                for c in range(1, m):  # the copies take the accepted step as it is
+                    _stages(x[c], U, k, tt, span, hh, P[c], kc, xt, u, x5)
+                    x[c] = x5
+                tt += hh
+                h = max(h, hh * fac) if cut else hh * fac
+            else:
+                h = hh * fac
+        _input_at(U, k, 1.0, u)
+        for c in range(m):
+            Y[c, k + 1] = observe(x[c], u, P[c])  # noqa: F821
     return 0
 
 
@@ -168,6 +222,19 @@ class SystemResult:
     t: np.ndarray
     x: dict[str, np.ndarray]
     y: np.ndarray
+
+
+def _kernel(template, model: StateSpaceModel):
+    """``template`` (:func:`_integrate` or :func:`_integrate_lockstep`) compiled for the
+    model's ``rate`` and ``observe`` and cached on disk (its step helpers with it)."""
+    rate = model.rate
+    return specialize(
+        template,
+        rate=rate,
+        observe=model.observe,
+        _stages=specialize(_stages, rate=rate),
+        _error=specialize(_error, rate=rate),
+    )
 
 
 def simulate_system(
@@ -221,6 +288,29 @@ def simulate_system(
             f"{model.name}: the initial state has {x0.size} values for the states "
             f"{', '.join(model.states)}; fix: give one value per state"
         )
+    U = input_matrix(model, t, inputs)
+    p = np.ascontiguousarray(model.run_parameters(dict(values or {}), float(current)))
+    X = np.full((t.size, x0.size), np.nan)
+    Y = np.full(t.size, np.nan)
+    status = _kernel(_integrate, model)(x0, t, U, p, rtol, atol, X, Y, int(max_steps_per_sample))
+    if status:
+        raise HystdiscError(
+            f"{model.name}: the simulation diverged or stalled; fix: check the parameters"
+        )
+    return SystemResult(t, {s: X[:, j] for j, s in enumerate(model.states)}, Y)
+
+
+def input_matrix(
+    model: StateSpaceModel, t: np.ndarray, inputs: Mapping[str, np.ndarray] | None
+) -> np.ndarray:
+    """The exogenous inputs of ``model`` sampled at ``t``, one column per name in
+    ``model.inputs``.
+
+    Raises
+    ------
+    HystdiscError
+        When an input is missing or not sampled at ``t``.
+    """
     inputs = dict(inputs or {})
     missing = [k for k in model.inputs if k not in inputs]
     if missing:
@@ -236,13 +326,64 @@ def simulate_system(
                 "fix: sample it at t"
             )
         U[:, j] = col
-    p = np.ascontiguousarray(model.run_parameters(dict(values or {}), float(current)))
-    X = np.full((t.size, x0.size), np.nan)
-    Y = np.full(t.size, np.nan)
-    kernel = specialize(_integrate, rate=model.rate, observe=model.observe)
-    status = kernel(x0, t, U, p, rtol, atol, X, Y, int(max_steps_per_sample))
-    if status:
+    return U
+
+
+def simulate_lockstep(
+    model: StateSpaceModel,
+    t: np.ndarray,
+    x0: np.ndarray,
+    p: np.ndarray,
+    inputs: Mapping[str, np.ndarray] | None = None,
+    rtol: float = RTOL,
+    atol: float = ATOL,
+    max_steps_per_sample: int = MAX_STEPS_PER_SAMPLE,
+) -> np.ndarray | None:
+    """Outputs of copies of one run integrated in lockstep with the nominal (the first).
+
+    Internal numerical differentiation (Bock): every copy takes the steps the nominal's
+    error control chose, so the outputs are one discrete solution map, smooth in the
+    initial state and parameters, at several points, and their differences are
+    derivatives of it whatever the tolerance (separately controlled runs would differ by
+    their own step choices as well).
+
+    Parameters
+    ----------
+    model : StateSpaceModel
+        The model (its compiled ``rate`` and ``observe``).
+    t : ndarray
+        Increasing sample times.
+    x0 : ndarray
+        Each copy's initial state, shape ``(copies, states)``; row 0 is the nominal.
+    p : ndarray
+        Each copy's packed parameter vector (``model.run_parameters``), shape
+        ``(copies, len(p))``.
+    inputs : dict of str to ndarray, optional
+        One array per name in ``model.inputs``, sampled at ``t``.
+    rtol, atol : float
+        Local error tolerances of the nominal's step control.
+    max_steps_per_sample : int
+        Steps allowed per sample interval (see :func:`simulate_system`).
+
+    Returns
+    -------
+    ndarray or None
+        The outputs, shape ``(copies, samples)``, row 0 bit for bit what
+        :func:`simulate_system` gives; None when the nominal diverged or stalled. Another
+        copy may hold non-finite values.
+    """
+    t = np.ascontiguousarray(t, dtype=float)
+    x0 = np.ascontiguousarray(x0, dtype=float)
+    p = np.ascontiguousarray(p, dtype=float)
+    if x0.ndim != 2 or x0.shape[1] != len(model.states) or p.shape[0] != x0.shape[0]:
         raise HystdiscError(
-            f"{model.name}: the simulation diverged or stalled; fix: check the parameters"
+            f"{model.name}: lockstep copies need initial states (copies, "
+            f"{len(model.states)}) and parameters (copies, n); got {x0.shape}, {p.shape}"
         )
-    return SystemResult(t, {s: X[:, j] for j, s in enumerate(model.states)}, Y)
+    U = input_matrix(model, t, inputs)
+    Y = np.full((x0.shape[0], t.size), np.nan)
+    with np.errstate(all="ignore"):
+        status = _kernel(_integrate_lockstep, model)(
+            x0, t, U, p, rtol, atol, Y, int(max_steps_per_sample)
+        )
+    return None if status else Y
