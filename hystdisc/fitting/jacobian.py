@@ -15,6 +15,8 @@ per column, every column of a run in one batched call).
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 import numpy as np
 
 from hystdisc.fitting.data import FitData
@@ -80,6 +82,20 @@ def map_derivative(
     return D, delays
 
 
+def run_groups(data: FitData, width: int) -> Iterator[list[int]]:
+    """The runs in consecutive groups of about :data:`JAC_CHUNK_SAMPLES` samples times
+    ``width`` (the simulated signals per sample), so the scratch memory of a Jacobian does
+    not grow with the data."""
+    group: list[int] = []
+    size = 0
+    for r in range(data.n_runs):
+        group.append(r)
+        size += data.t[r].size * width
+        if size >= JAC_CHUNK_SAMPLES or r == data.n_runs - 1:
+            yield group
+            group, size = [], 0
+
+
 def exact_jacobian(
     data: FitData,
     par: Parametrization,
@@ -124,13 +140,7 @@ def exact_jacobian(
     act = np.array(moving + starts, dtype=np.int64)
     offsets = np.cumsum([0] + [int(m.sum()) for m in masks])
     Jm = np.zeros((offsets[-1], k + R * nnu))
-    group: list[int] = []
-    size = 0
-    for r in range(R):
-        group.append(r)
-        size += data.t[r].size * (1 + act.size)
-        if size < JAC_CHUNK_SAMPLES and r < R - 1:
-            continue
+    for group in run_groups(data, 1 + act.size):
         ys, sens, bad = simulate_sensitivities(data, tm0, group, [nu[q] for q in group], act)
         if any(bad):
             return None
@@ -142,7 +152,6 @@ def exact_jacobian(
             rows = slice(offsets[q], offsets[q + 1])
             Jm[rows, :k] = cols[masks[q], :k]
             Jm[rows, k + q * nnu : k + (q + 1) * nnu] = cols[masks[q], k:]
-        group, size = [], 0
     return Jm
 
 
@@ -197,13 +206,7 @@ def difference_jacobian(
         tms.append(par.model(xj))
     offsets = np.cumsum([0] + [int(m.sum()) for m in masks])
     Jm = np.zeros((offsets[-1], k + R * nnu))
-    group: list[int] = []
-    size = 0
-    for r in range(R):
-        group.append(r)
-        size += data.t[r].size * (1 + k + nnu)
-        if size < JAC_CHUNK_SAMPLES and r < R - 1:
-            continue
+    for group in run_groups(data, 1 + k + nnu):
         models, runs, nuis, cols = [], [], [], []
         for q in group:
             entries = [(tm0, nu[q], -1)] + [(tms[j], nu[q], j) for j in range(k)]
@@ -224,5 +227,4 @@ def difference_jacobian(
                 continue
             h = steps[j] if j >= k or x[j] + steps[j] <= par.upper[j] else -steps[j]
             Jm[offsets[q] : offsets[q + 1], j] = (preds[e] - base[q])[masks[q]] / h
-        group, size = [], 0
     return Jm

@@ -214,14 +214,16 @@ def simulate_sensitivities(
     return [out[c] for c in cut], [sens[c] for c in cut], bad
 
 
-def _system_inputs(data: FitData, r: int, model: StateSpaceModel) -> dict[str, np.ndarray]:
+def system_inputs(data: FitData, r: int, model: StateSpaceModel) -> dict[str, np.ndarray]:
     """Run ``r``'s exogenous signals by the names the model asks for."""
     have = {"theta": data.theta[r], "theta_dot": data.theta_dot[r], "u": data.u[r]}
     return {k: have[k] for k in model.inputs}
 
 
-def _system_start(model: StateSpaceModel, names: list[str], nu: np.ndarray) -> np.ndarray:
-    """The initial state from a run's nuisance values (named like the experiment's)."""
+def system_start(data: FitData, model: StateSpaceModel, nu: np.ndarray) -> np.ndarray:
+    """The initial state of a run of ``model`` from the run's nuisance values (named like
+    the experiment's: ``theta0``, ``theta_dot0``, ``z0``)."""
+    names = data.exp.initial_state(has_z="z" in model.states)
     given = {n[:-1]: float(v) for n, v in zip(names, nu, strict=True)}  # theta0 -> theta
     return model.initial_state(**{k: v for k, v in given.items() if k in model.states})
 
@@ -254,8 +256,7 @@ def simulate_systems(
     windows = data.run_filters()
     steps = data.run_steps()
     for (model, values), r, nu in zip(systems, runs, nuis, strict=True):
-        names = data.exp.initial_state(has_z="z" in model.states)
-        x0 = _system_start(model, names, nu)
+        x0 = system_start(data, model, nu)
         try:
             y = simulate_system(
                 model,
@@ -263,7 +264,7 @@ def simulate_systems(
                 x0,
                 values,
                 current=float(data.currents[r]),
-                inputs=_system_inputs(data, r, model),
+                inputs=system_inputs(data, r, model),
                 rtol=SYSTEM_RTOL,
                 atol=SYSTEM_ATOL,
                 max_steps_per_sample=SYSTEM_MAX_STEPS * steps[r],

@@ -37,7 +37,6 @@ from hystdisc.fitting import simulate as _sim
 from hystdisc.fitting.data import FitData
 from hystdisc.fitting.measurement import measured_output
 from hystdisc.fitting.parametrization import Parametrization, SystemParametrization
-from hystdisc.models.system import StateSpaceModel
 from hystdisc.simulation.ode import simulate_lockstep
 
 #: How the Jacobian of a state-space model is computed: ``"lockstep"`` (this module) or
@@ -119,20 +118,6 @@ def system_jacobian(
     return Jm
 
 
-def _inputs(data: FitData, r: int, model: StateSpaceModel) -> dict[str, np.ndarray]:
-    """Run ``r``'s exogenous signals by the names the model asks for (as
-    :func:`~hystdisc.fitting.simulate.simulate_systems` gives them)."""
-    have = {"theta": data.theta[r], "theta_dot": data.theta_dot[r], "u": data.u[r]}
-    return {k: have[k] for k in model.inputs}
-
-
-def _start(data: FitData, model: StateSpaceModel, nu: np.ndarray) -> np.ndarray:
-    """The initial state from a run's nuisance values (as ``simulate_systems`` builds it)."""
-    names = data.exp.initial_state(has_z="z" in model.states)
-    given = {n[:-1]: float(q) for n, q in zip(names, nu, strict=True)}  # theta0 -> theta
-    return model.initial_state(**{k: q for k, q in given.items() if k in model.states})
-
-
 def _lockstep_run(data, r, nominal, perturbed, nu, nu_steps) -> np.ndarray | None:
     """Run ``r``'s measured outputs of the nominal, each perturbed parameter vector and
     each perturbed initial state (rows), integrated in lockstep; None when the nominal
@@ -148,14 +133,14 @@ def _lockstep_run(data, r, nominal, perturbed, nu, nu_steps) -> np.ndarray | Non
             return None
     current = float(data.currents[r])
     p0 = system.run_parameters(values, current)
-    x0 = _start(data, system, nu)
+    x0 = _sim.system_start(data, system, nu)
     P = [p0] + [s.run_parameters(vals, current) for s, vals in perturbed] + [p0] * nu.size
     X0 = [x0] * (1 + len(perturbed))
     delays = [system.output_delay(values)] + [s.output_delay(vals) for s, vals in perturbed]
     for q in range(nu.size):
         nq = nu.copy()
         nq[q] += nu_steps[q]
-        X0.append(_start(data, system, nq))
+        X0.append(_sim.system_start(data, system, nq))
         delays.append(delays[0])
     t = data.t[r]
     Y = simulate_lockstep(
@@ -163,7 +148,7 @@ def _lockstep_run(data, r, nominal, perturbed, nu, nu_steps) -> np.ndarray | Non
         t,
         np.array(X0),
         np.array(P),
-        _inputs(data, r, system),
+        _sim.system_inputs(data, r, system),
         rtol=_sim.SYSTEM_RTOL,
         atol=_sim.SYSTEM_ATOL,
         max_steps_per_sample=_sim.SYSTEM_MAX_STEPS * data.run_steps()[r],
