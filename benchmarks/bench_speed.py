@@ -9,8 +9,8 @@
    ``--repeats`` after one warm-up (numba's on-disk cache loaded).
 3. **Exact sensitivities against forward differences**, in process, one thread, the same
    data: ``Discovery(n_jobs=1).fit`` with the output-error Jacobian from the compiled
-   sensitivity kernels (term models) and the lockstep integrator (state-space models),
-   then with forward differences everywhere (the code before issue 17), alternated, CPU
+   sensitivity kernels (term models) and the lockstep integrator (state-space models, at
+   its tolerances), then with forward differences everywhere (the default), alternated, CPU
    time median of ``--repeats`` each; the answers of the two are compared (family,
    parameters to 6 significant digits and in standard errors).
 4. With ``--mr DIR`` (the UTFSM MR damper folder): ``hystdisc discover DIR --rig
@@ -67,17 +67,21 @@ def _fit_cpu(mode: str) -> tuple[float, dict]:
     from hystdisc.data import load
     from hystdisc.estimator import Discovery
     from hystdisc.fitting import output_error, system_jacobian
+    from hystdisc.fitting import simulate as fit_simulate
 
-    saved = output_error.JACOBIAN, system_jacobian.METHOD
+    sj = system_jacobian
+    saved = output_error.JACOBIAN, sj.METHOD, fit_simulate.SYSTEM_RTOL, fit_simulate.SYSTEM_ATOL
     output_error.JACOBIAN = "exact" if mode == "exact" else "forward"
-    system_jacobian.METHOD = "lockstep" if mode == "exact" else "forward"
+    sj.METHOD = "lockstep" if mode == "exact" else "forward"
+    if mode == "exact":
+        fit_simulate.SYSTEM_RTOL, fit_simulate.SYSTEM_ATOL = sj.LOCKSTEP_RTOL, sj.LOCKSTEP_ATOL
     try:
         ds = load([str(DATA)])
         t0 = time.process_time()
         disc = Discovery(n_jobs=1).fit(ds)
         cpu = time.process_time() - t0
     finally:
-        output_error.JACOBIAN, system_jacobian.METHOD = saved
+        output_error.JACOBIAN, sj.METHOD, fit_simulate.SYSTEM_RTOL, fit_simulate.SYSTEM_ATOL = saved
     fit = disc.final_fit_
     answer = {"family": disc.family_, "params": dict(fit.params), "ci95": dict(fit.ci95)}
     return cpu, answer

@@ -111,7 +111,7 @@ def test_lockstep_jacobian_matches_a_tight_central_difference(family, truth, exp
     finally:
         sim.SYSTEM_RTOL, sim.SYSTEM_ATOL = keep
     tight = _jacobian(fitter, v, "lockstep", 1e-10, 1e-13)
-    loose = _jacobian(fitter, v, "lockstep", sim.SYSTEM_RTOL, sim.SYSTEM_ATOL)
+    loose = _jacobian(fitter, v, "lockstep", sj.LOCKSTEP_RTOL, sj.LOCKSTEP_ATOL)
     assert _column_errors(tight, ref).max() < 1e-3
     # at the fit's own tolerance: the discrete map's derivative, within its integration error
     assert _column_errors(loose, ref).max() < 2e-2
@@ -135,7 +135,7 @@ def test_a_spencer_fit_with_the_lockstep_jacobian_reaches_the_old_optimum():
     data = _data("spencer", SPENCER, "driven", noise=0.02, seed=3)
     start = {k: v * (1.25 if i % 2 else 0.8) for i, (k, v) in enumerate(SPENCER.items())}
     par = FamilySystemParametrization("spencer", "driven", start)
-    new = _fit(par, data, "lockstep", sim.SYSTEM_RTOL, sim.SYSTEM_ATOL)
+    new = _fit(par, data, "lockstep", sj.LOCKSTEP_RTOL, sj.LOCKSTEP_ATOL)
     old = _fit(par, data, "forward", 1e-10, 1e-13)
     ref = _fit(par, data, "lockstep", 1e-12, 1e-15)
     assert new.rms == pytest.approx(ref.rms, rel=1e-6) and old.rms == pytest.approx(

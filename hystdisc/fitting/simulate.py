@@ -33,15 +33,11 @@ FIT_MIN_SUB = 1
 #: Sub-step cap while fitting: a candidate with a near-discontinuous state (a Dahl rate
 #: fitted to Bingham data) is not worth resolving exactly inside the optimizer.
 FIT_MAX_SUB = 8
-#: Tolerances of the error-controlled integrator inside a fit. The Jacobian integrates the
-#: perturbed copies in lockstep with the nominal (:mod:`hystdisc.fitting.system_jacobian`),
-#: so the tolerance serves the output error only: on the MR damper set (Spencer) 1e-8
-#: keeps the simulated force within 8e-4 N of a 1e-12 integration (RMS 2e-5 N; the noise
-#: is 0.04 N) and the cost within 3e-8 of it (the Levenberg-Marquardt stops at 1e-6).
-#: Forward differences of separately controlled runs (``system_jacobian.METHOD =
-#: "forward"``) need 1e-10 / 1e-13, as before.
-SYSTEM_RTOL = 1e-8
-SYSTEM_ATOL = 1e-11
+#: Tolerances of the error-controlled integrator inside a fit: forward differences of
+#: separately controlled runs (the default ``system_jacobian.METHOD``) need 1e-10 / 1e-13;
+#: the lockstep Jacobian needs only ``system_jacobian.LOCKSTEP_RTOL`` / ``ATOL``.
+SYSTEM_RTOL = 1e-10
+SYSTEM_ATOL = 1e-13
 #: Steps of the error-controlled integrator per measured sample interval while fitting: a
 #: candidate whose dynamics need more (a series mass driven towards zero, a stiff wheel)
 #: counts as diverged, and the optimizer backs away.
