@@ -243,12 +243,13 @@ class OutputErrorFitter:
         return self._resid_from(preds, runs)
 
     def jacobian(self, v: np.ndarray) -> np.ndarray:
-        """Jacobian of :meth:`residuals` (masked rows, all of ``v``): exact for a model in
-        term form (the kernels' sensitivities,
-        :func:`~hystdisc.fitting.jacobian.exact_jacobian`) unless the fitter was told
-        ``jacobian_mode="forward"``; forward differences (:meth:`difference_jacobian`)
-        otherwise, or where the simulation diverges. A state-space model: lockstep
-        differences (:func:`~hystdisc.fitting.system_jacobian.system_jacobian`)."""
+        """Jacobian of :meth:`residuals` (masked rows, all of ``v``): forward differences
+        (:meth:`difference_jacobian`, the default :data:`JACOBIAN`); with
+        ``jacobian_mode="exact"``, the kernels' sensitivities for a model in term form
+        (:func:`~hystdisc.fitting.jacobian.exact_jacobian`; forward differences where the
+        simulation diverges) and, when ``system_jacobian.METHOD`` is ``"lockstep"``,
+        lockstep differences for a state-space model
+        (:func:`~hystdisc.fitting.system_jacobian.system_jacobian`)."""
         if self.jacobian_mode != "forward" and lockstep_applies(self.par):
             return system_jacobian(
                 self.data, self.par, v, self.rel_step, self.masks, self.row_offsets
