@@ -185,6 +185,7 @@ def difference_jacobian(
     nu: np.ndarray,
     masks: list[np.ndarray],
     rel_step: float,
+    base: list[np.ndarray] | None = None,
 ) -> np.ndarray:
     """Forward-difference output-error Jacobian (arguments and result as
     :func:`exact_jacobian`; a step that would pass an upper bound is taken backwards).
@@ -192,7 +193,10 @@ def difference_jacobian(
     Every column of a run is simulated in one call with that run's base (a run's initial
     states touch only that run); the runs are simulated in groups of about
     :data:`JAC_CHUNK_SAMPLES` samples, so the memory beyond the Jacobian itself does not
-    grow with the data.
+    grow with the data. ``base``, when given, is every run's simulated output at ``x``
+    and ``nu`` (``par.simulate`` of them, e.g. the residual just evaluated there): the
+    base is then not simulated again. Each entry of a batched call is integrated on its
+    own, so the result is the same to the last bit.
     """
     R, k, nnu = data.n_runs, x.size, nu.shape[1]
     steps = difference_steps(np.concatenate([x, nu.ravel()]), rel_step)
@@ -208,8 +212,10 @@ def difference_jacobian(
     Jm = np.zeros((offsets[-1], k + R * nnu))
     for group in run_groups(data, 1 + k + nnu):
         models, runs, nuis, cols = [], [], [], []
+        base_of = {q: base[q] for q in group} if base is not None else {}
         for q in group:
-            entries = [(tm0, nu[q], -1)] + [(tms[j], nu[q], j) for j in range(k)]
+            entries = [] if q in base_of else [(tm0, nu[q], -1)]
+            entries += [(tms[j], nu[q], j) for j in range(k)]
             for i in range(nnu):
                 nq = nu[q].copy()
                 nq[i] += steps[k + q * nnu + i]
@@ -220,11 +226,10 @@ def difference_jacobian(
                 nuis.append(nq)
                 cols.append(j)
         preds = par.simulate(data, models, runs, nuis)
-        base = {}
         for e, (q, j) in enumerate(zip(runs, cols, strict=True)):
             if j < 0:
-                base[q] = preds[e]
+                base_of[q] = preds[e]
                 continue
             h = steps[j] if j >= k or x[j] + steps[j] <= par.upper[j] else -steps[j]
-            Jm[offsets[q] : offsets[q + 1], j] = (preds[e] - base[q])[masks[q]] / h
+            Jm[offsets[q] : offsets[q + 1], j] = (preds[e] - base_of[q])[masks[q]] / h
     return Jm

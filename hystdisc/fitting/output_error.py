@@ -190,6 +190,8 @@ class OutputErrorFitter:
         self.masks = data.mask
         #: Where each run's residual rows start (and the last one ends) in the residual.
         self.row_offsets = np.cumsum([0] + [int(m.sum()) for m in data.mask])
+        #: The vector of the last :meth:`residuals` call and every run's output there.
+        self._last: tuple[np.ndarray, list[np.ndarray]] | None = None
 
     def gram(self, J: np.ndarray) -> np.ndarray:
         """``J.T @ J`` of this fit's Jacobian from its blocks: a run's initial-state columns
@@ -240,6 +242,9 @@ class OutputErrorFitter:
         preds = self.par.simulate(
             self.data, [tm] * len(runs), runs, [nu[r] for r in runs], work_out=work_out
         )
+        # the Levenberg-Marquardt asks for the Jacobian where it last evaluated the
+        # residual: its forward differences reuse these outputs as their base
+        self._last = (np.array(v, dtype=float), preds)
         return self._resid_from(preds, runs)
 
     def jacobian(self, v: np.ndarray) -> np.ndarray:
@@ -265,7 +270,9 @@ class OutputErrorFitter:
         """Forward-difference Jacobian of :meth:`residuals` (masked rows, all of ``v``; see
         :func:`~hystdisc.fitting.jacobian.difference_jacobian`)."""
         x, nu = self._split(v)
-        return difference_jacobian(self.data, self.par, x, nu, self.masks, self.rel_step)
+        last = self._last
+        base = last[1] if last is not None and np.array_equal(last[0], v) else None
+        return difference_jacobian(self.data, self.par, x, nu, self.masks, self.rel_step, base)
 
     def fit(self, heldout: bool = True) -> OEFit:
         """Levenberg-Marquardt from the parametrization's start; intervals, BIC and (with
