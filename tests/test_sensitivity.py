@@ -292,6 +292,42 @@ def test_the_jacobian_mode_chooses_the_method():
     assert not OutputErrorFitter(fd, system, jacobian_mode="exact").exact
 
 
+@pytest.mark.parametrize("experiment", ["release", "forced", "driven"])
+@pytest.mark.parametrize("family", ["bingham", "lugre", "bouc-wen"])
+def test_forward_differences_reuse_the_residuals_base_to_the_last_bit(family, experiment):
+    """The forward-difference Jacobian at the vector of the last residual takes that
+    residual's outputs as its base instead of simulating them again (issue 17): the same
+    Jacobian, bit for bit, as one that simulates its base; a residual elsewhere is not
+    reused."""
+    fd = _fit_data(family, experiment)
+    par = FamilyParametrization(family, experiment, {})
+    entries: list[int] = []
+    simulate = par.simulate
+
+    def counted(data, models, *args, **kwargs):
+        entries.append(len(models))
+        return simulate(data, models, *args, **kwargs)
+
+    par.simulate = counted
+    v = _random_point(par, fd, seed=7)
+    fresh = OutputErrorFitter(fd, par, jacobian_mode="forward").difference_jacobian(v)
+    n_fresh = sum(entries)
+    fitter = OutputErrorFitter(fd, par, jacobian_mode="forward")
+    fitter.residuals(v)
+    entries.clear()
+    np.testing.assert_array_equal(fitter.difference_jacobian(v), fresh)
+    assert sum(entries) == n_fresh - fd.n_runs  # one base simulation per run saved
+    fitter.residuals(1.01 * v)  # the last residual is elsewhere: not the base at v
+    np.testing.assert_array_equal(fitter.difference_jacobian(v), fresh)
+    system = SystemParametrization(BeamOnCompliantWheel("dahl"), {}, {"m_w": 0.3})
+    if experiment == "release" and family == "lugre":
+        fs = OutputErrorFitter(fd, system)
+        w = np.concatenate([system.x0, fd.nuisance_start(system.has_state())])
+        fresh = OutputErrorFitter(fd, system).difference_jacobian(w)
+        fs.residuals(w)
+        np.testing.assert_array_equal(fs.difference_jacobian(w), fresh)
+
+
 # ----------------------------------------------------------------------------- fits
 
 
