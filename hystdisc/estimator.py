@@ -651,8 +651,9 @@ class Discovery(BaseEstimator):
         def family_fixed(name):
             return {p: 0.0 for p in FAMILIES[name].current_params} if self.single_current_ else {}
 
-        def more_starts(name):
-            """The family from its other starts (its stage-1 fit is the first)."""
+        def more_starts(name, mapper=None):
+            """The family from its other starts (its stage-1 fit is the first), screened
+            on the threads of ``mapper`` when given."""
             pars = []
             first = self.family_fits_[name]
             for label, start in self._family_starts(eq, name, first.par.params(first.par.x0)):
@@ -665,7 +666,14 @@ class Discovery(BaseEstimator):
                 pars.append(("current levels", first.par.like(lv, first.par.effects)))
             good = NOISE_RATIO * fd.noise_std
             return best_of_starts(
-                fd, pars, self.max_nfev, say=say, name=name, good_rms=good, first=first
+                fd,
+                pars,
+                self.max_nfev,
+                mapper=mapper,
+                say=say,
+                name=name,
+                good_rms=good,
+                first=first,
             )
 
         def with_heldout(name):
@@ -702,7 +710,11 @@ class Discovery(BaseEstimator):
                         f"times the best family's (more starts are tried within "
                         f"{COMPETITIVE_RMS:g} times it)"
                     )
-            if more:
+            if len(more) == 1:
+                # one family alone: its starts are screened on the threads (independent
+                # fits; the same answer as in turn)
+                self.family_fits_[more[0]] = more_starts(more[0], self._map)
+            elif more:
                 refits = self._map(more_starts, more)
                 self.family_fits_.update(zip(more, refits, strict=True))
         if nest and more:
