@@ -98,10 +98,6 @@ _SAY_LOCK = threading.Lock()
 SELECTION_TIE_BIC = 2.0
 #: Other basins of a term family's stage-1 grid among its output-error starts.
 GRID_BASINS = 2
-#: A family is fitted from more starts when its first fit is above the noise floor and
-#: within this factor of the best family's RMS (further off, other starts would not make
-#: it the selected one).
-COMPETITIVE_RMS = 3.0
 #: Families whose BIC lies within this of the selected one "fit equally well".
 EQUAL_FIT_BIC = 6.0
 #: A family whose held-out RMS exceeds the best family's by more than this factor is not
@@ -694,22 +690,13 @@ class Discovery(BaseEstimator):
         nest = len(fams) > 1  # no family ends worse than a model it contains
         if nest:
             self.family_fits_ = nesting_pass(fd, self.family_fits_, self.max_nfev, say)
-        # a family still above the noise and near the best one is fitted from more starts
-        top = min((f.rms for f in self.family_fits_.values()), default=np.inf)
+        # every family still above the noise is fitted from more starts: however far it is
+        # from the best family, it may be the true one in a wrong basin (a Bingham release
+        # on an encoder stopped at 4.9x LuGre's RMS from stage 1's start and reached the
+        # floor from its current-levels start)
         good = NOISE_RATIO * fd.noise_std
-        more = [
-            n
-            for n, f in self.family_fits_.items()
-            if f.rms > good and f.rms <= COMPETITIVE_RMS * max(top, good)
-        ]
+        more = [n for n, f in self.family_fits_.items() if f.rms > good]
         if self.n_starts > 1:
-            for n, f in self.family_fits_.items():
-                if n not in more and f.rms > good:
-                    f.notes.append(
-                        f"fitted from stage 1's start only: its RMS is {f.rms / top:.3g} "
-                        f"times the best family's (more starts are tried within "
-                        f"{COMPETITIVE_RMS:g} times it)"
-                    )
             if len(more) == 1:
                 # one family alone: its starts are screened on the threads (independent
                 # fits; the same answer as in turn)
@@ -811,15 +798,19 @@ class Discovery(BaseEstimator):
         pool = [n for n in fits if self.admissibility_[n].ok] or list(fits)
         held = {n: fits[n].heldout_rms for n in pool if fits[n].heldout_rms is not None}
         if held:
+            # a family whose held-out prediction diverged (no held-out RMS while others
+            # have one) did not predict the data it did not see: it is not in the pool
             best = min(held.values())
-            pool = [n for n in pool if held.get(n, best) <= HELDOUT_CLEARLY_WORSE * best]
+            pool = [n for n in held if held[n] <= HELDOUT_CLEARLY_WORSE * best]
         pick = by_bic(pool)
         if pick == bic_pick:
             return pick, None
+        h0, h1 = fits[bic_pick].heldout_rms, fits[pick].heldout_rms
         if not self.admissibility_[bic_pick].ok:
             why = f"it is not physical ({self.admissibility_[bic_pick].violations[0]})"
+        elif h0 is None:
+            why = "its held-out prediction diverged"
         else:
-            h0, h1 = fits[bic_pick].heldout_rms, fits[pick].heldout_rms
             why = f"its held-out error {h0:.4g} is {100 * (h0 / h1 - 1):.0f} % above {pick}'s {h1:.4g}"
         return pick, f"BIC prefers {bic_pick}, but {why}: {pick} selected"
 

@@ -66,3 +66,56 @@ def test_floor_and_normalized_truth():
     # seed-form Bouc-Wen is reported with z_sat = 1: delta = beta + gamma
     t = stress.normalized_truth("bouc-wen", stress.sample_set("bouc-wen", 0)[0])
     assert t["delta"] == pytest.approx(t["beta"] + t["gamma"])
+
+
+def _results(case, values, ses, family=None):
+    """A minimal results.json of ``case``: the given values with intervals +-1.96 SE."""
+    pars = {
+        n: {"value": v, "ci95": [v - stress.Z95 * ses[n], v + stress.Z95 * ses[n]]}
+        for n, v in values.items()
+    }
+    fit = {"family": family or case.family, "effects": [], "parameters": pars, "rms": 1e-3}
+    return {"final": fit, "families": {case.family: fit}}
+
+
+def test_a_parameter_the_data_cannot_tell_to_5_percent_is_judged_at_its_interval():
+    params, _ = stress.sample_set("bouc-wen-std", 1)
+    case = stress.Case("bouc-wen-std", 1, "white", params)
+    truth = stress.normalized_truth("bouc-wen-std", params)
+    ses = {n: 1e-3 * abs(t) for n, t in truth.items()}  # every parameter told to 0.1 %
+    # beta 9 % off with a 4.5 % standard error (z = 2): honest, but not within 5 %
+    values = dict(truth, beta=truth["beta"] * 1.09)
+    ses["beta"] = 0.045 * truth["beta"]
+    rec = stress.evaluate(_results(case, values, ses), case)
+    assert not rec["criteria"]["params"] and rec["criteria"]["params_data"]
+    assert rec["criteria"]["ci_joint"] and rec["success_data"] and not rec["success_joint"]
+    assert set(rec["data_limited"]) == {"beta"}
+    assert rec["data_limited"]["beta"] == pytest.approx(
+        stress.joint_z(len(truth)) * 0.045, rel=1e-6
+    )
+    # the same 9 % with a 1 % standard error is a confident wrong answer: it fails
+    ses["beta"] = 0.01 * truth["beta"]
+    rec = stress.evaluate(_results(case, values, ses), case)
+    assert not rec["criteria"]["params_data"] and not rec["criteria"]["ci_joint"]
+    assert not rec["success_data"] and not rec["data_limited"]
+    # a wrong family fails whatever its parameters
+    rec = stress.evaluate(
+        _results(case, truth, ses, family="lugre")
+        | {"families": {"bouc-wen-std": _results(case, truth, ses)["final"]}},
+        case,
+    )
+    assert not rec["success_data"] and rec["criteria"]["params_data"]
+
+
+def test_intervals_are_honest_over_noise_draws():
+    # benchmarks/interval_coverage.py at small scale: one seed-form Bouc-Wen set of the
+    # suite, 10 noise draws of 2 s records. Honest standard errors give z-scores of rms 1
+    # (measured 1.03 over 16 draws); an interval off by a factor of 2 either way (a lost
+    # s^2, a sandwich applied twice) lands far outside this band
+    import interval_coverage
+
+    recs = [interval_coverage.one_draw("bouc-wen", 1, "white", d, 2.0) for d in range(10)]
+    s = interval_coverage.summarize(recs)
+    assert s["pairs"] == 90
+    assert 0.6 <= s["z_rms"] <= 1.5, s
+    assert s["coverage"] >= 0.85 and s["joint"] >= 0.8, s
