@@ -100,12 +100,9 @@ def summarize(recs: list[dict]) -> dict:
 def render(recs: list[dict], meta: dict) -> str:
     """The markdown report."""
     lines = [
-        "# Coverage of the 95 % intervals over noise draws (issue 16)",
-        "",
-        f"Command: `{meta['command']}`  ",
-        f"Commit: {meta['commit']}; {meta['when']}; wall time {meta['wall_s']:.0f} s; "
-        f"{len(recs)} fits.",
-        "",
+        *stress.report_header(
+            "Coverage of the 95 % intervals over noise draws (issue 16)", meta, f"{len(recs)} fits"
+        ),
         "Each fit: a stress-suite parameter set (`benchmarks/stress.py`), simulated with a "
         f"fresh noise draw (seeds {SEED_BASE}+), the true family fitted by output error. "
         "Honest intervals: coverage 0.95 (within the binomial band), z rms 1, all inside "

@@ -439,15 +439,21 @@ def _rate(recs: list[dict], key: str | None = None) -> str:
     return f"{ok}/{len(recs)}"
 
 
+def report_header(title: str, meta: dict, count: str) -> list[str]:
+    """The first lines of a benchmark report: title, command, commit, time and ``count``."""
+    return [
+        f"# {title}",
+        "",
+        f"Command: `{meta['command']}`  ",
+        f"Commit: {meta['commit']}; {meta['when']}; wall time {meta['wall_s']:.0f} s; {count}.",
+        "",
+    ]
+
+
 def render(records: list[dict], meta: dict) -> str:
     """The markdown report."""
     lines = [
-        "# Stress suite (issue 16 item 7)",
-        "",
-        f"Command: `{meta['command']}`  ",
-        f"Commit: {meta['commit']}; {meta['when']}; wall time {meta['wall_s']:.0f} s; "
-        f"{len(records)} cases.",
-        "",
+        *report_header("Stress suite (issue 16 item 7)", meta, f"{len(records)} cases"),
         "Each case: `hystdisc simulate` (5 currents, release from 0.3 rad, "
         f"{meta['duration']} s at 1 kHz) of a random parameter set, then `hystdisc discover` "
         "with default settings. Criteria (see `benchmarks/stress.py`): **family** = the true "
