@@ -362,9 +362,11 @@ def refit_structural(
     by = "stiffness" if data.exp.motion_imposed else "frequency"
     if data.exp.motion_imposed:
         n_starts = min(n_starts, N_STARTS_MOUNT)
-    chosen = distinct_starts(starts, n_starts, by=by)
-    if not data.exp.motion_imposed:
-        chosen = screened_starts(data, fit, name, starts, n_starts)
+    chosen = (
+        distinct_starts(starts, n_starts, by=by)
+        if data.exp.motion_imposed
+        else screened_starts(data, fit, name, starts, n_starts)
+    )
     for st in chosen:
         par = fit.par.like(st, (*fit.par.effects, name))
         with np.errstate(all="ignore"):
