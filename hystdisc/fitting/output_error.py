@@ -53,10 +53,11 @@ HELDOUT_STEPS = 2
 #: How the Jacobian is computed unless a fitter is told otherwise: ``"forward"`` (forward
 #: differences) or ``"exact"`` (the forward sensitivities of the term kernels, 2.3x faster
 #: per Jacobian, 1.44x per discovery, tested against central differences). Forward is the
-#: default because two loop cases end in another basin with the exact one: the compliant
-#: wheel's refit from its start at 75x the true stiffness reaches the truth only along
-#: the forward-difference path (issue 17 note; ``benchmarks/bench_speed.py`` measures
-#: both).
+#: default because the answers change with the exact one: measured at 68d5560
+#: (``benchmarks/check_unchanged.py``), the loop then adds ``series_compliance`` on
+#: ``data_synth/effect_offset.csv`` and ``coulomb`` on ``effect_quadratic_damping.csv``
+#: (the compliant wheel of ``tests/test_compliance.py``, which once ended in another
+#: basin with it, is found with either since its refit's starts are screened).
 JACOBIAN = "forward"
 
 
