@@ -286,7 +286,7 @@ def evaluate(res: dict, case: Case) -> dict:
     ratio = float(fit["rms"]) / case.floor
     out_tol, out_ci, skipped, checked = [], [], [], []
     zs: dict[str, float] = {}
-    ses: dict[str, tuple[float, float, float, float]] = {}
+    rel_se: dict[str, float] = {}  # standard error relative to the truth
     for name, t in truth.items():
         entry = pars.get(name)
         if entry is None:
@@ -305,14 +305,13 @@ def evaluate(res: dict, case: Case) -> dict:
             out_ci.append({"name": name, "truth": t, "value": v, "ci95": [lo, hi]})
         se = (hi - lo) / (2.0 * Z95)
         zs[name] = abs(v - t) / se if se > 0 else (0.0 if v == t else math.inf)
-        ses[name] = (se, t, v, rel)
+        if t:
+            rel_se[name] = se / abs(t)
     # what the data can tell: a parameter whose simultaneous interval is wider than TOL
     # cannot be asked to be within TOL (an efficient estimator misses it about as often as
     # its z-score passes TOL / SE); it is judged at that limit instead, and listed
     zj = joint_z(len(zs))
-    limited = {
-        n: zj * se / abs(t) for n, (se, t, _, _) in ses.items() if t and zj * se > TOL * abs(t)
-    }
+    limited = {n: zj * r for n, r in rel_se.items() if zj * r > TOL}
     out_data = [o for o in out_tol if o["rel"] > max(TOL, limited.get(o["name"], 0.0))]
     noise = res.get("noise") or {}
     outliers = res.get("outliers") or {}
