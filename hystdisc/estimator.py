@@ -46,6 +46,7 @@ from sklearn.base import BaseEstimator
 from threadpoolctl import threadpool_limits
 
 from hystdisc.closing import LoopResult, close_loop
+from hystdisc.closing.reselect import Reselection, refit_families, rig_effects
 from hystdisc.closing.residual import NOISE_RATIO
 from hystdisc.data import (
     Dataset,
@@ -85,7 +86,7 @@ from hystdisc.fitting import (
 )
 from hystdisc.fitting.multistart import best_of_starts, nesting_pass, random_starts, system_fit
 from hystdisc.fitting.staged import levels_start
-from hystdisc.models import FAMILIES, format_equation, get_family
+from hystdisc.models import EFFECTS, FAMILIES, format_equation, get_family
 from hystdisc.registry import experiment_names, family_names, get_experiment
 from hystdisc.results import build_results
 from hystdisc.simulation.admissibility import check_admissible
@@ -718,12 +719,6 @@ class Discovery(BaseEstimator):
             n: check_admissible(f.model, self.envelope_) for n, f in self.family_fits_.items()
         }
         self.family_, self.selection_note_ = self._select()
-        bics = {n: f.bic for n, f in self.family_fits_.items()}
-        self.equal_fits_ = sorted(
-            n
-            for n, b in bics.items()
-            if b - bics[self.family_] < EQUAL_FIT_BIC and n != self.family_
-        )
         self.declared_ = self.model is not None
         selected = self.family_fits_[self.family_]
         # a glitch the selected model reproduces is a feature: it enters the fits again
@@ -749,20 +744,19 @@ class Discovery(BaseEstimator):
             )
         self.loop_: LoopResult | None = None
         if self.close_loop:
-            say("closing the loop: residual -> catalogued effects")
-            self.loop_ = close_loop(
-                selected,
-                fd,
-                self.noise_std_,
-                eq,
-                self._stage1_shape(selected),
-                max_nfev=self.max_nfev,
-                heldout=True,
-                progress=say,
-                envelope=self.envelope_,
-                decided=self._decided_by_staged(),
-                noise_samples=self.noise_.samples,
-            )
+            self.loop_ = self._close_loop(selected, eq, fd, say)
+        self.reselection_: Reselection | None = None
+        rig = rig_effects(self.loop_.effects) if self.loop_ is not None else []
+        staged_changed = self.staged_ is not None and self.staged_.changed
+        if rig and self.model is None and self.family_ in fams and len(fams) > 1:
+            if not staged_changed:  # the staged laws belong to the selected family alone
+                selected = self._reselect(rig, fams, eq, fd, selected, say)
+        bics = {n: f.bic for n, f in self.family_fits_.items()}
+        self.equal_fits_ = sorted(
+            n
+            for n, b in bics.items()
+            if b - bics[self.family_] < EQUAL_FIT_BIC and n != self.family_
+        )
         self.final_fit_ = selected if self.loop_ is None else self.loop_.fit
         self.effects_ = [] if self.loop_ is None else list(self.loop_.effects)
         self.final_admissibility_ = (
@@ -784,9 +778,90 @@ class Discovery(BaseEstimator):
         self.results_ = build_results(self, dataset)
         return self
 
-    def _select(self) -> tuple[str, str | None]:
-        """The selected family and, when BIC alone would have chosen another, why not."""
-        fits = self.family_fits_
+    def _close_loop(self, selected: OEFit, eq: EqData, fd: FitData, say) -> LoopResult:
+        say("closing the loop: residual -> catalogued effects")
+        return close_loop(
+            selected,
+            fd,
+            self.noise_std_,
+            eq,
+            self._stage1_shape(selected),
+            max_nfev=self.max_nfev,
+            heldout=True,
+            progress=say,
+            envelope=self.envelope_,
+            decided=self._decided_by_staged(),
+            noise_samples=self.noise_.samples,
+        )
+
+    def _reselect(
+        self, rig: list[str], fams: list[str], eq: EqData, fd: FitData, selected: OEFit, say
+    ) -> OEFit:
+        """The families compared again with the rig effects the loop accepted
+        (:mod:`hystdisc.closing.reselect`); returns the selected family's fit (switched
+        when another family with them predicts better and so does its final model)."""
+        old = self.loop_
+        values = {
+            p.name: old.fit.params[p.name]
+            for e in rig
+            for p in EFFECTS[e].params
+            if p.name in old.fit.params
+        }
+        say(f"selection again: every family with {', '.join(rig)} (the rig's, not the damper's)")
+        fits = refit_families(
+            {n: self.family_fits_[n] for n in fams},
+            rig,
+            fd,
+            eq,
+            values,
+            self._stage1_shape,
+            max_nfev=self.max_nfev,
+            heldout=self.heldout,
+            mapper=self._map,
+        )
+        adm = {n: check_admissible(f.term_part, self.envelope_) for n, f in fits.items()}
+        pick, _ = self._select(fits, adm)
+        before = self.family_
+        res = Reselection(rig, fits, {n: a.ok for n, a in adm.items()}, before, pick)
+        res.final_heldout[before] = old.fit.heldout_rms
+        with_rig = f"with {', '.join(rig)}"
+        self.reselection_ = res
+        if pick == before:
+            res.note = f"{with_rig} in every family, {before} is still selected"
+            return selected
+        say(f"selection again: {pick} {with_rig} predicts better; closing the loop from it")
+        loop = self._close_loop(self.family_fits_[pick], eq, fd, say)
+        h0, h1 = old.fit.heldout_rms, loop.fit.heldout_rms
+        res.final_heldout[pick] = h1
+        final = loop.fit.model if loop.fit.is_system else loop.fit.term_part
+        better = (h1 < h0) if h0 is not None and h1 is not None else loop.fit.bic < old.fit.bic
+        if not (better and check_admissible(final, self.envelope_).ok):
+            res.note = (
+                f"{with_rig} in every family {pick} predicted better than {before} "
+                f"(held-out {fits[pick].heldout_rms:.4g} vs {fits[before].heldout_rms:.4g}), "
+                f"but its final model did not (held-out {h1:.4g} vs {h0:.4g}): {before} kept"
+            )
+            return selected
+        res.switched = True
+        res.note = (
+            f"{before} was selected without {', '.join(rig)}, which the loop then found (an "
+            f"effect of the rig, shared by every family); {with_rig}, {pick} predicts the "
+            f"held-out runs better (held-out {fits[pick].heldout_rms:.4g} vs "
+            f"{fits[before].heldout_rms:.4g}), and so does its final model ({h1:.4g} vs "
+            f"{h0:.4g}): {pick} selected"
+        )
+        self.family_ = pick
+        self.selection_note_ = res.note
+        self.loop_ = loop  # the outliers stay as confirmed by the first selection's fit
+        return self.family_fits_[pick]
+
+    def _select(self, fits=None, admissible=None) -> tuple[str, str | None]:
+        """The selected family and, when BIC alone would have chosen another, why not.
+
+        ``fits`` and ``admissible`` (name -> ``check_admissible`` outcome) default to the
+        family table's (``family_fits_``, ``admissibility_``)."""
+        fits = self.family_fits_ if fits is None else fits
+        admissible = self.admissibility_ if admissible is None else admissible
         bics = {n: f.bic for n, f in fits.items()}
 
         def by_bic(names):
@@ -795,7 +870,7 @@ class Discovery(BaseEstimator):
             return min(close, key=lambda n: (fits[n].n_params, bics[n]))
 
         bic_pick = by_bic(list(fits))
-        pool = [n for n in fits if self.admissibility_[n].ok] or list(fits)
+        pool = [n for n in fits if admissible[n].ok] or list(fits)
         held = {n: fits[n].heldout_rms for n in pool if fits[n].heldout_rms is not None}
         if held:
             # a family whose held-out prediction diverged (no held-out RMS while others
@@ -806,8 +881,8 @@ class Discovery(BaseEstimator):
         if pick == bic_pick:
             return pick, None
         h0, h1 = fits[bic_pick].heldout_rms, fits[pick].heldout_rms
-        if not self.admissibility_[bic_pick].ok:
-            why = f"it is not physical ({self.admissibility_[bic_pick].violations[0]})"
+        if not admissible[bic_pick].ok:
+            why = f"it is not physical ({admissible[bic_pick].violations[0]})"
         elif h0 is None:
             why = "its held-out prediction diverged"
         else:

@@ -250,14 +250,14 @@ def screen_starts(
 def refit_with(
     data: FitData,
     fit: OEFit,
-    effect: str,
+    effect: str | Sequence[str],
     estimate: dict[str, float] | None = None,
     max_nfev: int = 60,
     heldout: bool = False,
     start: dict[str, float] | None = None,
     good_rms: float = 0.0,
 ) -> OEFit:
-    """Refit ``fit`` plus ``effect`` by output error.
+    """Refit ``fit`` plus ``effect`` (one effect or several) by output error.
 
     Starts: the current optimum with the effect at 0, with the effect at its one-step
     estimate ``estimate``, and the stage-1 start ``start``; the fit runs from the one with
@@ -270,10 +270,10 @@ def refit_with(
         The data.
     fit : OEFit
         Current fit (a :class:`~hystdisc.fitting.FamilyParametrization`).
-    effect : str
-        Catalogue name of the effect to add.
+    effect : str or sequence of str
+        Catalogue name of the effect to add, or the names of several.
     estimate : dict, optional
-        One-step values of the effect's parameters (default 0).
+        One-step values of the effects' parameters (default 0).
     max_nfev : int
         Simulation budget of each fit.
     heldout : bool
@@ -288,20 +288,21 @@ def refit_with(
     OEFit
         The refit with the lowest BIC.
     """
+    added = [effect] if isinstance(effect, str) else list(effect)
     local = []
     for values in [None] + ([estimate] if estimate and any(estimate.values()) else []):
-        par, x = with_effects(fit, [effect], values)
+        par, x = with_effects(fit, added, values)
         st = dict(zip(par.names, map(float, x), strict=True))
-        local.append((_start_rss(data, fit, [effect], st), st))
+        local.append((_start_rss(data, fit, added, st), st))
     local.sort(key=lambda t: t[0])
     groups = [local[0]]
     if start is not None:
-        g = (_start_rss(data, fit, [effect], start), start)
+        g = (_start_rss(data, fit, added, start), start)
         groups = [g, local[0]] if g[0] < local[0][0] else [local[0], g]
     best = None
     for _, st in groups:
         par0 = fit.par
-        par = par0.like(st, (*par0.effects, effect))
+        par = par0.like(st, (*par0.effects, *added))
         with np.errstate(all="ignore"):
             new = OutputErrorFitter(data, par, max_nfev=max_nfev).fit(heldout=heldout)
         if best is None or (np.isfinite(new.bic) and new.bic < best.bic):

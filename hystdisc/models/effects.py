@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import importlib
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from hystdisc.models.params import BIG, Param
 from hystdisc.models.terms import SHEAR_M0, SHEAR_TERM, TermModel
@@ -43,6 +43,11 @@ class Effect:
         there; empty: all of them.
     experiments : tuple of str
         The experiment types the effect is built for; empty: all.
+    rig : bool
+        The effect belongs to the rig or the measurement chain (the spring's neutral angle,
+        its stiffening, a delay between channels, a compliant wheel or mount), not to the
+        damper: every family shares it, so the families are compared again with it when
+        the loop accepts it (:mod:`hystdisc.closing.reselect`).
     exponents : tuple of (str, str)
         Parameters that are not torque coefficients but an exponent of the term model:
         (parameter name, :class:`~hystdisc.models.TermModel` attribute), e.g. the
@@ -60,6 +65,7 @@ class Effect:
     system: str = ""
     significance: tuple[str, ...] = ()
     experiments: tuple[str, ...] = ()
+    rig: bool = False
 
     @property
     def structural(self) -> bool:
@@ -180,6 +186,7 @@ _ONE_TERM = (
 CURRENT_VISCOUS, CURRENT_SATURATION, COULOMB, QUADRATIC_DAMPING, CUBIC_STIFFNESS = (
     _one_term_effect(*row) for row in _ONE_TERM
 )
+CUBIC_STIFFNESS = replace(CUBIC_STIFFNESS, rig=True)  # the rig's spring, not the damper
 
 OFFSET = Effect(
     "offset",
@@ -188,6 +195,7 @@ OFFSET = Effect(
     "the spring's neutral angle differs from the sensor zero: k_s*(theta - theta_off)",
     lambda p, ks: {"1": -ks * p["theta_off"]},
     lambda c, ks: {"theta_off": -c.get("1", 0.0) / ks if ks else 0.0},
+    rig=True,
 )
 
 #: Admissible channel delay [s]: either sign, at most this long (a delay of a tenth of a
@@ -211,6 +219,7 @@ CHANNEL_DELAY = Effect(
     "y(t - tau_d) (driven and forced experiments, fractional samples)",
     lambda p, ks: {},
     lambda c, ks: {"tau_d": 0.0},
+    rig=True,
 )
 
 
@@ -252,6 +261,7 @@ SERIES_COMPLIANCE = Effect(
     system="hystdisc.models.wheel:series_compliance_system",
     significance=("k_w",),
     experiments=("release", "driven"),
+    rig=True,
 )
 """Series compliance (structural: :func:`~hystdisc.models.wheel.series_compliance_system`):
 the SAS beam on a compliant wheel (release) or the damper behind a compliant mount

@@ -193,6 +193,13 @@ class Results(Record):
         glitch's ``run``, ``signal``, ``sample``, ``t``, ``size``, ``residual``,
         ``fitted``), ``explained`` (candidates the model reproduces, kept in the fit),
         ``threshold_sigma``, ``left_out``; None in files written before it.
+    reselection : dict or None
+        Present when the closing loop accepted an effect of the rig (an offset, the
+        spring's stiffening, a channel delay) on a selected family: every family refitted
+        with it (``families``: ``rms``, ``heldout_rms``, ``bic``, ``admissible``), the
+        family selected ``before``, the ``pick`` among those fits, whether the selection
+        ``switched`` to it (its final model predicts the held-out runs better:
+        ``final_heldout``), and a ``note`` (:class:`hystdisc.closing.reselect.Reselection`).
     extra : dict
         Keys this version does not know (kept on a round trip).
     """
@@ -242,6 +249,7 @@ class Results(Record):
     noise: dict[str, Any] | None = None
     encoder: dict[str, Any] | None = None
     outliers: dict[str, Any] | None = None
+    reselection: dict[str, Any] | None = None
     extra: dict[str, Any] = field(default_factory=dict, repr=False)
 
     # ----------------------------------------------------------------- JSON

@@ -138,6 +138,16 @@ def effects_table(res: Results) -> list[str]:
             f"  Final model: {' + '.join([fin.family, *fin.effects])}, "
             f"RMS {fin.rms:.4g}{ratio}{held}, BIC {fin.bic:.1f}"
         )
+        if fin.effects:  # the family's own parameters move when an effect enters
+            effect_params = {k for e in res.effects for k in e.parameters}
+            out.append("  Final model's parameters (95 % intervals):")
+            for k, p in fin.parameters.items():
+                if k in effect_params or p.value is None:
+                    continue
+                lo, hi = p.ci95 if p.ci95 else (None, None)
+                ci = f"[{lo:.5g}, {hi:.5g}]" if lo is not None and hi is not None else "-"
+                flag = "" if p.identifiable else "  not identifiable"
+                out.append(f"    {k:<10}{p.value:>13.6g}   {ci:<30}{flag}".rstrip())
         for v in fin.violations:
             out.append(f"  WARNING: the final model is not physical: {v}")
     return out
