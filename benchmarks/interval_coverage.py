@@ -10,7 +10,9 @@ sets) it simulates ``--seeds`` noise draws with the package's simulator (the cod
 ``hystdisc simulate``), fits the true family by output error (``Discovery(model=...)``,
 the fit and its intervals exactly as ``hystdisc discover --model`` computes them; no
 closing loop or held-out folds, which do not change the declared fit), and records each
-identifiable parameter's z-score ``(estimate - truth) / SE``.
+identifiable parameter's z-score ``(estimate - truth) / SE``. A noise-free encoder
+condition (``enc4096``, ``enc2048``) has no noise to draw: each draw is the encoder's zero,
+uniform over one count (:func:`encoder_draw`).
 
 Reported per family and condition:
     coverage
@@ -60,6 +62,8 @@ def one_draw(family: str, index: int, condition: str, draw: int, duration: float
     params, _ = stress.sample_set(family, index, duration)
     truth = stress.normalized_truth(family, params)
     cond = stress.CONDITIONS[condition]
+    counts = cond["encoder"]
+    noise_free_encoder = bool(counts) and not cond["noise"]
     ds = generate(
         Model(family, params),
         currents=stress.CURRENTS,
@@ -67,9 +71,11 @@ def one_draw(family: str, index: int, condition: str, draw: int, duration: float
         noise=cond["noise"],
         theta0=stress.THETA0,
         seed=SEED_BASE + draw,
-        encoder_counts=cond["encoder"],
+        encoder_counts=None if noise_free_encoder else counts,
         spikes=cond["spikes"],
     )
+    if noise_free_encoder:  # the draw is the encoder's zero, uniform over one count
+        ds = encoder_draw(ds, 2.0 * math.pi / counts, SEED_BASE + draw)
     fit = Discovery(model=family, close_loop=False, heldout=False, n_jobs=1).fit(ds).final_fit_
     z = {}
     for name, t in truth.items():
@@ -78,6 +84,16 @@ def one_draw(family: str, index: int, condition: str, draw: int, duration: float
         se = fit.stderr[name]
         z[name] = (fit.params[name] - t) / se if se > 0 else math.inf
     return {"family": family, "index": index, "condition": condition, "draw": draw, "z": z}
+
+
+def encoder_draw(ds, q: float, seed: int):
+    """``ds`` read by an encoder of step ``q`` whose zero is drawn uniformly over one count
+    (noise-free data have no noise to draw: the encoder's zero is what varies)."""
+    from hystdisc.data.dataset import Dataset, Run
+
+    u = np.random.default_rng(seed).uniform(0.0, q)
+    runs = [Run(r.name, r.t, q * np.round((r.theta - u) / q) + u, r.current) for r in ds.runs]
+    return Dataset(runs, ds.experiment, source=f"{ds.source}, encoder zero {u / q:.3f} counts")
 
 
 def summarize(recs: list[dict]) -> dict:

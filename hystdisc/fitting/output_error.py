@@ -34,7 +34,7 @@ from hystdisc.fitting.data import FitData
 from hystdisc.fitting.jacobian import difference_jacobian, exact_jacobian
 from hystdisc.fitting.lm import levenberg_marquardt
 from hystdisc.fitting.parametrization import Parametrization, SystemParametrization
-from hystdisc.fitting.quantized import quantization_information
+from hystdisc.fitting.quantized import quantization_information_by_dwell
 from hystdisc.fitting.system_jacobian import lockstep_applies, system_jacobian
 from hystdisc.models import TermModel
 from hystdisc.stats import bic as _bic
@@ -415,7 +415,9 @@ class OutputErrorFitter:
         cov = s2 * cov_s / np.outer(scale, scale)
         if self.data.quantum > 0:  # quantization error: correlated, a sandwich
             ainv = cov_s / np.outer(scale, scale)
-            B = quantization_information(Jm, self._measured() + res, self.data.quantum)
+            sizes = [int(np.count_nonzero(m)) for m in self.masks]
+            pred = self._measured() + res
+            B = quantization_information_by_dwell(Jm, pred, self.data.quantum, sizes)
             cov = s2 * ainv @ B @ ainv
         covx = cov[: self.npar, : self.npar]
         # propagate to reported (incl. derived) parameters
