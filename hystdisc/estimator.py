@@ -12,10 +12,11 @@ Selection: a conclusion counts only if it predicts data the fit did not see, wit
 physically admissible parameters. The candidates are the families that are admissible
 (they dissipate energy and their spring stiffens over twice the training envelope; all
 families when none is) and whose held-out error (leave one test condition out, or one
-run) is not clearly worse than the best one's (within :data:`HELDOUT_CLEARLY_WORSE`);
-among them the lowest BIC wins, except that every family within :data:`SELECTION_TIE_BIC`
-(2) of the lowest is a tie, resolved towards the fewest parameters (nested families).
-When BIC alone would have chosen another family, ``selection_note_`` says so. Families
+run) is not clearly worse than the best one's; among them the lowest BIC wins, ties
+resolved towards the fewest parameters (:func:`~hystdisc.fitting.selection.select_family`).
+When BIC alone would have chosen another family, ``selection_note_`` says so; when the
+loop accepts an effect of the rig, the families are compared again with it
+(``reselection_``, :mod:`hystdisc.closing.reselect`). Families
 whose BIC lies within :data:`EQUAL_FIT_BIC` (6) of the selected one are reported as
 fitting equally well (``equal_fits_``).
 
@@ -46,7 +47,7 @@ from sklearn.base import BaseEstimator
 from threadpoolctl import threadpool_limits
 
 from hystdisc.closing import LoopResult, close_loop
-from hystdisc.closing.reselect import Reselection, refit_families, rig_effects
+from hystdisc.closing.reselect import Reselection, reselect, rig_effects
 from hystdisc.closing.residual import NOISE_RATIO
 from hystdisc.data import (
     Dataset,
@@ -85,8 +86,9 @@ from hystdisc.fitting import (
     staged_fit,
 )
 from hystdisc.fitting.multistart import best_of_starts, nesting_pass, random_starts, system_fit
+from hystdisc.fitting.selection import select_family
 from hystdisc.fitting.staged import levels_start
-from hystdisc.models import EFFECTS, FAMILIES, format_equation, get_family
+from hystdisc.models import FAMILIES, format_equation, get_family
 from hystdisc.registry import experiment_names, family_names, get_experiment
 from hystdisc.results import build_results
 from hystdisc.simulation.admissibility import check_admissible
@@ -95,15 +97,10 @@ from hystdisc.stats import samples_per_cycle
 #: Default upper limit of the threads of one discovery.
 MAX_THREADS = 4
 _SAY_LOCK = threading.Lock()
-#: Families within this BIC of the lowest are a tie, resolved towards fewer parameters.
-SELECTION_TIE_BIC = 2.0
 #: Other basins of a term family's stage-1 grid among its output-error starts.
 GRID_BASINS = 2
 #: Families whose BIC lies within this of the selected one "fit equally well".
 EQUAL_FIT_BIC = 6.0
-#: A family whose held-out RMS exceeds the best family's by more than this factor is not
-#: selected on BIC alone.
-HELDOUT_CLEARLY_WORSE = 1.1
 
 
 def _n_threads(n_jobs: int | None) -> int:
@@ -269,6 +266,8 @@ class Discovery(BaseEstimator):
         The closing loop's outcome (None with ``close_loop=False``).
     final_fit_ : OEFit
         The selected family with every accepted effect (its own fit without the loop).
+    reselection_ : Reselection or None
+        The families compared again with the rig effects the loop accepted (None: none).
     effects_ : list of str
         The accepted effects.
     final_admissibility_ : Admissibility
@@ -750,7 +749,16 @@ class Discovery(BaseEstimator):
         staged_changed = self.staged_ is not None and self.staged_.changed
         if rig and self.model is None and self.family_ in fams and len(fams) > 1:
             if not staged_changed:  # the staged laws belong to the selected family alone
-                selected = self._reselect(rig, fams, eq, fd, selected, say)
+                table = {n: self.family_fits_[n] for n in fams}
+                close = lambda fit: self._close_loop(fit, eq, fd, say)  # noqa: E731
+                res = reselect(table, self.family_, self.loop_, rig, fd, eq, self.envelope_,
+                               close, self._stage1_shape, self.max_nfev, self.heldout,
+                               self._map, say)  # fmt: skip
+                self.reselection_ = res
+                if res.switched:  # the outliers stay as the first selection confirmed them
+                    self.family_, self.selection_note_ = res.pick, res.note
+                    self.loop_ = res.loop
+                    selected = self.family_fits_[res.pick]
         bics = {n: f.bic for n, f in self.family_fits_.items()}
         self.equal_fits_ = sorted(
             n
@@ -794,100 +802,10 @@ class Discovery(BaseEstimator):
             noise_samples=self.noise_.samples,
         )
 
-    def _reselect(
-        self, rig: list[str], fams: list[str], eq: EqData, fd: FitData, selected: OEFit, say
-    ) -> OEFit:
-        """The families compared again with the rig effects the loop accepted
-        (:mod:`hystdisc.closing.reselect`); returns the selected family's fit (switched
-        when another family with them predicts better and so does its final model)."""
-        old = self.loop_
-        values = {
-            p.name: old.fit.params[p.name]
-            for e in rig
-            for p in EFFECTS[e].params
-            if p.name in old.fit.params
-        }
-        say(f"selection again: every family with {', '.join(rig)} (the rig's, not the damper's)")
-        fits = refit_families(
-            {n: self.family_fits_[n] for n in fams},
-            rig,
-            fd,
-            eq,
-            values,
-            self._stage1_shape,
-            max_nfev=self.max_nfev,
-            heldout=self.heldout,
-            mapper=self._map,
-        )
-        adm = {n: check_admissible(f.term_part, self.envelope_) for n, f in fits.items()}
-        pick, _ = self._select(fits, adm)
-        before = self.family_
-        res = Reselection(rig, fits, {n: a.ok for n, a in adm.items()}, before, pick)
-        res.final_heldout[before] = old.fit.heldout_rms
-        with_rig = f"with {', '.join(rig)}"
-        self.reselection_ = res
-        if pick == before:
-            res.note = f"{with_rig} in every family, {before} is still selected"
-            return selected
-        say(f"selection again: {pick} {with_rig} predicts better; closing the loop from it")
-        loop = self._close_loop(self.family_fits_[pick], eq, fd, say)
-        h0, h1 = old.fit.heldout_rms, loop.fit.heldout_rms
-        res.final_heldout[pick] = h1
-        final = loop.fit.model if loop.fit.is_system else loop.fit.term_part
-        better = (h1 < h0) if h0 is not None and h1 is not None else loop.fit.bic < old.fit.bic
-        if not (better and check_admissible(final, self.envelope_).ok):
-            res.note = (
-                f"{with_rig} in every family {pick} predicted better than {before} "
-                f"(held-out {fits[pick].heldout_rms:.4g} vs {fits[before].heldout_rms:.4g}), "
-                f"but its final model did not (held-out {h1:.4g} vs {h0:.4g}): {before} kept"
-            )
-            return selected
-        res.switched = True
-        res.note = (
-            f"{before} was selected without {', '.join(rig)}, which the loop then found (an "
-            f"effect of the rig, shared by every family); {with_rig}, {pick} predicts the "
-            f"held-out runs better (held-out {fits[pick].heldout_rms:.4g} vs "
-            f"{fits[before].heldout_rms:.4g}), and so does its final model ({h1:.4g} vs "
-            f"{h0:.4g}): {pick} selected"
-        )
-        self.family_ = pick
-        self.selection_note_ = res.note
-        self.loop_ = loop  # the outliers stay as confirmed by the first selection's fit
-        return self.family_fits_[pick]
-
-    def _select(self, fits=None, admissible=None) -> tuple[str, str | None]:
-        """The selected family and, when BIC alone would have chosen another, why not.
-
-        ``fits`` and ``admissible`` (name -> ``check_admissible`` outcome) default to the
-        family table's (``family_fits_``, ``admissibility_``)."""
-        fits = self.family_fits_ if fits is None else fits
-        admissible = self.admissibility_ if admissible is None else admissible
-        bics = {n: f.bic for n, f in fits.items()}
-
-        def by_bic(names):
-            bmin = min(bics[n] for n in names)
-            close = [n for n in names if bics[n] - bmin < SELECTION_TIE_BIC]
-            return min(close, key=lambda n: (fits[n].n_params, bics[n]))
-
-        bic_pick = by_bic(list(fits))
-        pool = [n for n in fits if admissible[n].ok] or list(fits)
-        held = {n: fits[n].heldout_rms for n in pool if fits[n].heldout_rms is not None}
-        if held:
-            # a family whose held-out prediction diverged (no held-out RMS while others
-            # have one) did not predict the data it did not see: it is not in the pool
-            best = min(held.values())
-            pool = [n for n in held if held[n] <= HELDOUT_CLEARLY_WORSE * best]
-        pick = by_bic(pool)
-        if pick == bic_pick:
-            return pick, None
-        h0, h1 = fits[bic_pick].heldout_rms, fits[pick].heldout_rms
-        if not admissible[bic_pick].ok:
-            why = f"it is not physical ({admissible[bic_pick].violations[0]})"
-        elif h0 is None:
-            why = "its held-out prediction diverged"
-        else:
-            why = f"its held-out error {h0:.4g} is {100 * (h0 / h1 - 1):.0f} % above {pick}'s {h1:.4g}"
-        return pick, f"BIC prefers {bic_pick}, but {why}: {pick} selected"
+    def _select(self) -> tuple[str, str | None]:
+        """The selected family and, when BIC alone would have chosen another, why not
+        (:func:`~hystdisc.fitting.selection.select_family` on the family table)."""
+        return select_family(self.family_fits_, self.admissibility_)
 
     def _check_fitted(self):
         if not hasattr(self, "results_"):

@@ -13,6 +13,7 @@ from hystdisc import Discovery
 from hystdisc.cli import main
 from hystdisc.closing.reselect import Reselection, refit_families, rig_effects
 from hystdisc.data import load
+from hystdisc.fitting.selection import select_family
 from hystdisc.simulation.admissibility import check_admissible
 
 TRUTH = "alpha_1=0.7,alpha_2=1.1,c_1=0.35,c_2=0.8,beta=14,gamma=7,n=1.5,k_s=190"
@@ -50,7 +51,7 @@ def test_with_the_offset_every_family_is_judged_fairly_and_the_true_one_wins(bas
         base._stage1_shape,
     )
     adm = {n: check_admissible(f.term_part, base.envelope_) for n, f in fits.items()}
-    pick, _ = base._select(fits, adm)
+    pick, _ = select_family(fits, adm)
     assert pick == "bouc-wen"
     fit = fits[pick]
     assert fit.rms < 1.03 * noise and fit.heldout_rms < 1.03 * noise

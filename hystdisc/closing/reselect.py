@@ -27,7 +27,9 @@ from typing import Any
 from hystdisc.closing.refit import refit_with, stage1_start
 from hystdisc.closing.residual import NOISE_RATIO
 from hystdisc.fitting import FitData, OEFit
+from hystdisc.fitting.selection import select_family
 from hystdisc.models import EFFECTS
+from hystdisc.simulation.admissibility import check_admissible
 
 
 def rig_effects(effects: Sequence[str]) -> list[str]:
@@ -67,7 +69,8 @@ def refit_families(
     values : mapping of str to float
         The effects' parameters where the loop found them (the second start).
     shapes : callable
-        ``fit -> `` the stage-1 shape constants of its family (the start's shape search).
+        Called with a fit, returns the stage-1 shape constants of its family (where the
+        start's shape search begins).
     max_nfev : int
         Simulation budget of each fit.
     heldout : bool
@@ -125,6 +128,8 @@ class Reselection:
         again) of ``pick``.
     note : str
         What was compared and decided, in one sentence.
+    loop : LoopResult or None
+        The loop closed again from ``pick`` (None when ``pick`` is ``before``).
     """
 
     effects: list[str]
@@ -135,6 +140,7 @@ class Reselection:
     switched: bool = False
     final_heldout: dict[str, float | None] = field(default_factory=dict)
     note: str = ""
+    loop: Any = None
 
     def to_dict(self) -> dict[str, Any]:
         """The ``reselection`` entry of ``results.json``."""
@@ -155,3 +161,97 @@ class Reselection:
             "final_heldout": dict(self.final_heldout),
             "note": self.note,
         }
+
+
+def reselect(
+    family_fits: Mapping[str, OEFit],
+    before: str,
+    loop: Any,
+    effects: Sequence[str],
+    data: FitData,
+    eq: Any,
+    envelope: Any,
+    close: Callable[[OEFit], Any],
+    shapes: Callable[[OEFit], Any],
+    max_nfev: int = 60,
+    heldout: bool = True,
+    mapper: Callable | None = None,
+    say: Callable[[str], None] | None = None,
+) -> Reselection:
+    """Compare the families again with the rig ``effects`` the loop accepted on ``before``.
+
+    Every family is refitted with them (:func:`refit_families`) and the usual rule picks
+    one (:func:`~hystdisc.fitting.selection.select_family`). When that is another family,
+    the loop is closed again from its fit (``close``), and the switch is made
+    (``switched``) only when the new final model predicts the held-out runs better than
+    ``loop``'s and is admissible.
+
+    Parameters
+    ----------
+    family_fits : mapping of str to OEFit
+        The family table's fits (term families), without effects.
+    before : str
+        The family selected from the table.
+    loop : LoopResult
+        The loop closed on ``before`` (its final fit carries the effects' values).
+    effects : sequence of str
+        The accepted rig effects (:func:`rig_effects`).
+    data : FitData
+        The output-error data.
+    eq : EqData
+        The equation-error data.
+    envelope : Envelope
+        The training envelope (admissibility).
+    close : callable
+        Called with a family's fit, closes the loop on it and returns the ``LoopResult``.
+    shapes : callable
+        Called with a fit, returns its family's stage-1 shape constants.
+    max_nfev : int
+        Simulation budget of each refit.
+    heldout : bool
+        Judge the refits on held-out data.
+    mapper : callable, optional
+        ``mapper(fn, items) -> list`` for the refits.
+    say : callable, optional
+        Progress messages.
+
+    Returns
+    -------
+    Reselection
+    """
+    say = say or (lambda msg: None)
+    final = loop.fit
+    values = {p.name: final.params[p.name] for e in effects for p in EFFECTS[e].params}
+    names = ", ".join(effects)
+    say(f"selection again: every family with {names} (the rig's, not the damper's)")
+    fits = refit_families(family_fits, effects, data, eq, values, shapes, max_nfev, heldout, mapper)
+    adm = {n: check_admissible(f.term_part, envelope) for n, f in fits.items()}
+    pick, _ = select_family(fits, adm)
+    res = Reselection(list(effects), fits, {n: a.ok for n, a in adm.items()}, before, pick)
+    h0 = final.heldout_rms
+    res.final_heldout[before] = h0
+    if pick == before:
+        res.note = f"with {names} in every family, {before} is still selected"
+        return res
+    say(f"selection again: {pick} with {names} predicts better; closing the loop from it")
+    res.loop = close(family_fits[pick])
+    new = res.loop.fit
+    h1 = new.heldout_rms
+    res.final_heldout[pick] = h1
+    better = (h1 < h0) if h0 is not None and h1 is not None else new.bic < final.bic
+    admissible = check_admissible(new.model if new.is_system else new.term_part, envelope).ok
+    held = f"held-out {fits[pick].heldout_rms:.4g} vs {fits[before].heldout_rms:.4g}"
+    h1s, h0s = (f"{h:.4g}" if h is not None else "-" for h in (h1, h0))
+    if not (better and admissible):
+        res.note = (
+            f"with {names} in every family {pick} predicted better than {before} ({held}), "
+            f"but its final model did not (held-out {h1s} vs {h0s}): {before} kept"
+        )
+        return res
+    res.switched = True
+    res.note = (
+        f"{before} was selected without {names}, which the loop then found (an effect of "
+        f"the rig, shared by every family); with {names}, {pick} predicts the held-out "
+        f"runs better ({held}), and so does its final model ({h1s} vs {h0s}): {pick} selected"
+    )
+    return res

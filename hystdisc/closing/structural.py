@@ -17,18 +17,21 @@ the current optimum in the score test's sense (the rig without the wheel is the 
    motion), with the mount's frequency :data:`MOUNT_FREQUENCY_RATIOS` times the highest
    drive frequency (far above it: the mount's mass is a regularizer, not a resonance the
    data show) and the same damping ratios.
-2. **Diagnosis** (:func:`score_structural`): every start is simulated once; the best one's
-   RSS reduction is the effect's evidence (an achieved share of the RSS, a lower bound of
-   what the refit will give) and predicts its BIC change. The loop refits the effect when
+2. **Diagnosis** (:func:`score_structural`): on release data the least damped start of
+   every (frequency, inertia) cell is screened by :data:`WHEEL_SCREEN_NFEV` iterations
+   (:func:`screen_cells`; simulated once, a stiff wheel changes nothing and ranks first,
+   and a LuGre beam on an 8 Hz wheel scored evidence 0 where its screened start reached
+   the noise); a driven mount's starts are simulated once. The best one's RSS reduction
+   is the effect's evidence (an achieved share of the RSS, a lower bound of what the
+   refit will give) and predicts its BIC change. The loop refits the effect when
    that change is a drop or the residual shows its signature; a driven fit above the
    noise always counts as one (the fit without the mount has bent the damper's
    parameters towards it, so its starts predict little: on a bouc-wen-std damper behind
    a mount of 9 times its stiffness the best start was worse than the fit without it, and
    every refit reached the noise).
-3. **Refit** (:func:`refit_structural`): release data screen the least damped start of
-   every (frequency, inertia) cell of the grid by :data:`WHEEL_SCREEN_NFEV` iterations
-   (:func:`screened_starts`; one simulation ranks them poorly), a driven mount takes the
-   best-ranked starts; the output-error fit runs from the :data:`N_STARTS` best of them,
+3. **Refit** (:func:`refit_structural`): release data continue from the screened starts
+   (:func:`screened_starts`; screened here when the diagnosis did not), a driven mount
+   takes the best-ranked starts; the output-error fit runs from the :data:`N_STARTS` best of them,
    the one with the lowest BIC is kept, and the spread of the starts (their RMS and wheel
    stiffness) is reported in ``fit.extra["starts"]``.
 
@@ -223,10 +226,19 @@ def score_structural(data: FitData, fit: OEFit, name: str) -> EffectScore | None
     if not starts:
         return None
     ranked = []
-    for st in starts:
-        rss, per = _rss_at(data, fit, name, st)
-        if np.isfinite(rss):
-            ranked.append((rss, per, st))
+    if not data.exp.motion_imposed:
+        # release: one simulation per start ranks them poorly (a stiff wheel changes
+        # nothing and ranks first; a LuGre beam on an 8 Hz wheel scored evidence 0, while
+        # its screened start reached the noise), so the cells are screened here and the
+        # refit continues from these screened starts
+        for _, new, k_w in screen_cells(data, fit, name, starts):
+            per = [float(np.sum(r[m] ** 2)) for r, m in zip(new.residuals, data.mask, strict=True)]
+            ranked.append((float(new.rss), per, {**new.params, "k_w_start": k_w}))
+    else:
+        for st in starts:
+            rss, per = _rss_at(data, fit, name, st)
+            if np.isfinite(rss):
+                ranked.append((rss, per, st))
     if not ranked:
         return None
     ranked.sort(key=lambda t: t[0])
@@ -296,11 +308,25 @@ def distinct_starts(
 def screened_starts(
     data: FitData, fit: OEFit, name: str, starts: list[dict], n: int = N_STARTS
 ) -> list[dict]:
-    """The ``n`` release starts to continue: the least damped start of every (wheel
-    frequency, inertia) of the grid, each screened by :data:`WHEEL_SCREEN_NFEV`
-    Levenberg-Marquardt iterations, the ``n`` lowest BIC after the screen (their screened
-    parameters, with the grid start's ``k_w`` kept as ``k_w_start``), distinct in
-    frequency as :func:`distinct_starts` keeps them."""
+    """The ``n`` release starts to continue: the ``n`` lowest BIC after
+    :func:`screen_cells` (their screened parameters, with the grid start's ``k_w`` kept
+    as ``k_w_start``), distinct in frequency as :func:`distinct_starts` keeps them.
+    Starts that are already screened (they carry ``k_w_start``, from
+    :func:`score_structural`) are not screened again."""
+    if starts and all("k_w_start" in st for st in starts):
+        return distinct_starts(starts, n)
+    screened = [
+        {**new.params, "k_w_start": k_w} for _, new, k_w in screen_cells(data, fit, name, starts)
+    ]
+    return distinct_starts(screened, n) or distinct_starts(starts, n)
+
+
+def screen_cells(
+    data: FitData, fit: OEFit, name: str, starts: list[dict]
+) -> list[tuple[float, OEFit, float]]:
+    """The least damped start of every (wheel frequency, inertia) cell of the grid, each
+    fitted by :data:`WHEEL_SCREEN_NFEV` Levenberg-Marquardt iterations: ``(BIC, fit, the
+    start's k_w)``, lowest BIC first (failed screens left out)."""
     cells: dict[tuple, dict] = {}
     for st in starts:  # the least damped start of each cell (a damped one drifts to m_w -> 0)
         cell = (round(float(np.log(st["k_w"] / st["m_w"])), 3), round(float(st["m_w"]), 6))
@@ -316,9 +342,9 @@ def screened_starts(
             except HystdiscError:
                 continue
         if np.isfinite(new.bic):
-            screened.append((new.bic, {**new.params, "k_w_start": st["k_w"]}))
+            screened.append((float(new.bic), new, float(st["k_w"])))
     screened.sort(key=lambda b: b[0])
-    return distinct_starts([st for _, st in screened], n) or distinct_starts(starts, n)
+    return screened
 
 
 def refit_structural(
