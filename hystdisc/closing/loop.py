@@ -27,6 +27,11 @@ family:
    projected out) and, while the residual is clearly above the noise, the *stage-1 start*
    of each augmented structure (variable projection of family + effect on the
    equation-error data, simulated: :func:`~hystdisc.closing.refit.stage1_start`).
+   A structural effect (a compliant wheel) is diagnosed by screening its grid of starts
+   (:func:`~hystdisc.closing.structural.score_structural`, a dozen short fits; a later
+   round screens the best cells of the first only). It is not deferred until the term
+   refits have failed: a mild wheel leaves a misfit within 10 % of the noise, which cubic
+   stiffness trims enough to look done.
 3. **Augmentation** (:func:`augment`): per round, the top two candidates by output-error
    evidence and the top by equation-error evidence whose predicted BIC drop beats
    :data:`EFFECT_BIC_MARGIN` are refitted by output error (from the current optimum with
@@ -176,6 +181,19 @@ def _effect_entry(
     }
 
 
+def _structural_scores(data, current, names, cells: dict, say) -> list[EffectScore]:
+    """The diagnoses of the structural effects ``names``; ``cells`` keeps each one's best
+    screened cells, which a later round screens alone."""
+    out = []
+    for c in names:
+        say(f"closing the loop: starts of {c}")
+        sc = score_structural(data, current, c, cells=cells.get(c))
+        if sc is not None:
+            out.append(sc)
+            cells[c] = sc.cells
+    return out
+
+
 def _refit_queue(scores: list[EffectScore]) -> list[EffectScore]:
     """Candidates worth a local output-error refit this round (at most three).
 
@@ -221,6 +239,9 @@ def _start_picks(scores: list[EffectScore], rms: float) -> list[EffectScore]:
     within :data:`START_NEAR` of the current ``rms`` (an unconverged start of the right
     structure can begin above the current optimum: an offset's start at 1.26 times a
     distorted fit's RMS converged to the noise), :data:`SCREEN_REFITS` at most."""
+    # a structural effect's starts were screened in its diagnosis, and its evidence
+    # already decided whether it is refitted (:func:`_refit_queue`)
+    scores = [s for s in scores if s.starts is None]
     out = [s for s in [_start_pick(scores)] if s is not None]
     near = sorted(
         (s for s in scores if s.start_rms is not None and s.start_rms < START_NEAR * rms),
@@ -492,6 +513,7 @@ def augment(
     rejected: set[str] = set()
     steps: dict[str, dict] = {}
     fits: dict[frozenset, OEFit] = {frozenset(): fit}  # best fit of each effect set
+    cells: dict[str, list[dict] | None] = {}  # a structural effect's best screened cells
     for round_no in range(1, 2 * len(EFFECTS) + 1):
         if current.rms <= good_rms and noise_std == floor:
             break  # within the simulator's own accuracy (noise-free data): nothing to explain
@@ -501,11 +523,7 @@ def augment(
         structural = [c for c in pool if EFFECTS[c].structural]
         scores = score_effects(data, current, [c for c in pool if c not in structural], eq=eq)
         if current.rms > good_rms:  # a structure can only explain a misfit
-            for c in structural:
-                say(f"closing the loop: starts of {c}")
-                sc = score_structural(data, current, c)
-                if sc is not None:
-                    scores.append(sc)
+            scores += _structural_scores(data, current, structural, cells, say)
             scores.sort(key=lambda s: -s.evidence)
         diag = {"round": round_no, "candidates": [s.to_dict() for s in scores]}
         out.diagnosis.append(diag)

@@ -8,13 +8,14 @@ off the sensor zero, both Bouc-Wen forms were bent into generating energy (not p
 LuGre was selected, and the loop covered the rest of its misfit with quadratic damping and
 a compliant wheel, at 1.13x the noise.
 
-When the loop accepts such an effect, :func:`refit_families` fits every family with it,
-from stage 1's start of family plus effects and from the family's own optimum with the
-effect at the loop's values, each judged on held-out data. The estimator selects among
-these by its usual rules (admissible, held-out error, BIC); when that is another family,
-the loop is closed again from that family's fit, and the switch is kept only when the new
-final model predicts the held-out runs better than the first one did
-(:class:`Reselection` records both). A structural effect (a compliant wheel) is not
+When the loop accepts such an effect, :func:`reselect` has every family fitted with it
+(:func:`refit_families`: from stage 1's start of family plus effects and from the
+family's own optimum with the effect at the loop's values, each judged on held-out data)
+and picks one by the family table's rule
+(:func:`~hystdisc.fitting.selection.select_family`: admissible, held-out error, BIC);
+when that is another family, the loop is closed again from that family's fit, and the
+switch is kept only when the new final model predicts the held-out runs better than the
+first one did (:class:`Reselection` records both). A structural effect (a compliant wheel) is not
 carried to another family: it is fitted as its own state-space system.
 """
 

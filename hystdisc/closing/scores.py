@@ -76,6 +76,10 @@ class EffectScore:
     signature : str or None
         A structural effect's signature in the residual, in words (a resonance above the
         beam's frequency), when there is one.
+    cells : list of dict or None
+        Release: the wheel values of the grid's screened cells, best first; the loop's
+        next round screens the best of them only
+        (:func:`~hystdisc.closing.structural.score_structural`).
     """
 
     name: str
@@ -93,6 +97,7 @@ class EffectScore:
     start: dict[str, float] | None = None
     starts: list[dict[str, float]] | None = None
     signature: str | None = None
+    cells: list[dict] | None = None
 
     def to_dict(self) -> dict:
         """Plain-dict form for ``results.json``."""

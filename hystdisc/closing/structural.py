@@ -19,9 +19,12 @@ the current optimum in the score test's sense (the rig without the wheel is the 
    data show) and the same damping ratios.
 2. **Diagnosis** (:func:`score_structural`): on release data the least damped start of
    every (frequency, inertia) cell is screened by :data:`WHEEL_SCREEN_NFEV` iterations
+   on the lowest- and the highest-current run, then simulated on every run
    (:func:`screen_cells`; simulated once, a stiff wheel changes nothing and ranks first,
    and a LuGre beam on an 8 Hz wheel scored evidence 0 where its screened start reached
-   the noise); a driven mount's starts are simulated once. The best one's RSS reduction
+   the noise); a later round of the loop screens only the previous screen's best cells
+   (:data:`N_STARTS` distinct frequencies: ``EffectScore.cells``), a driven mount's
+   starts are simulated once. The best one's RSS reduction
    is the effect's evidence (an achieved share of the RSS, a lower bound of what the
    refit will give) and predicts its BIC change. The loop refits the effect when
    that change is a drop or the residual shows its signature; a driven fit above the
@@ -54,11 +57,12 @@ from hystdisc.closing.diagnostics import (
 from hystdisc.closing.refit import EFFECT_BIC_MARGIN
 from hystdisc.closing.residual import natural_frequency
 from hystdisc.closing.scores import EffectScore
-from hystdisc.errors import HystdiscError
 from hystdisc.fitting import FitData, OEFit, OutputErrorFitter
 from hystdisc.models import EFFECTS
 from hystdisc.stats import bic_change, masked, sampling_rate
 
+#: Runs a wheel's grid is screened on (:func:`screen_runs`).
+SCREEN_RUNS = 2
 #: Wheel natural frequencies of the start grid, in multiples of the beam's own.
 FREQUENCY_RATIOS = (1.5, 2.5, 4.0, 6.0, 10.0)
 #: Wheel inertias of the start grid, per unit beam inertia.
@@ -204,7 +208,9 @@ def _rss_at(data: FitData, fit: OEFit, name: str, start: dict) -> tuple[float, n
     return float(r @ r), per
 
 
-def score_structural(data: FitData, fit: OEFit, name: str) -> EffectScore | None:
+def score_structural(
+    data: FitData, fit: OEFit, name: str, cells: list[dict] | None = None
+) -> EffectScore | None:
     """Diagnose the structural effect ``name`` by its screened starts (module docstring).
 
     Parameters
@@ -215,6 +221,10 @@ def score_structural(data: FitData, fit: OEFit, name: str) -> EffectScore | None
         The current fit.
     name : str
         The structural effect.
+    cells : list of dict, optional
+        Release: the wheel values (``m_w``, ``k_w``, ``c_w``) to screen instead of the
+        whole grid (a later round of the loop screens the best cells of the first:
+        :data:`N_STARTS` distinct frequencies, ``EffectScore.cells``).
 
     Returns
     -------
@@ -223,17 +233,19 @@ def score_structural(data: FitData, fit: OEFit, name: str) -> EffectScore | None
         ranked by their RSS (None when the rig has no frequency to start from).
     """
     starts = structural_starts(fit, data, name)
+    if cells and starts and not data.exp.motion_imposed:
+        starts = [{**fit.params, **w} for w in cells]
     if not starts:
         return None
-    ranked = []
+    ranked, screened = [], []
     if not data.exp.motion_imposed:
         # release: one simulation per start ranks them poorly (a stiff wheel changes
         # nothing and ranks first; a LuGre beam on an 8 Hz wheel scored evidence 0, while
         # its screened start reached the noise), so the cells are screened here and the
         # refit continues from these screened starts
-        for _, new, k_w in screen_cells(data, fit, name, starts):
-            per = [float(np.sum(r[m] ** 2)) for r, m in zip(new.residuals, data.mask, strict=True)]
-            ranked.append((float(new.rss), per, {**new.params, "k_w_start": k_w}))
+        screened = screen_cells(data, fit, name, starts)
+        for rss, per, params, cell in screened:
+            ranked.append((rss, per, {**params, "k_w_start": cell["k_w"]}))
     else:
         for st in starts:
             rss, per = _rss_at(data, fit, name, st)
@@ -275,6 +287,7 @@ def score_structural(data: FitData, fit: OEFit, name: str) -> EffectScore | None
         start=best,
         starts=[st for _, _, st in ranked],
         signature=signature,
+        cells=distinct_starts([c for *_, c in screened], N_STARTS) or None,
     )
 
 
@@ -316,33 +329,57 @@ def screened_starts(
     if starts and all("k_w_start" in st for st in starts):
         return distinct_starts(starts, n)
     screened = [
-        {**new.params, "k_w_start": k_w} for _, new, k_w in screen_cells(data, fit, name, starts)
+        {**params, "k_w_start": cell["k_w"]}
+        for _, _, params, cell in screen_cells(data, fit, name, starts)
     ]
     return distinct_starts(screened, n) or distinct_starts(starts, n)
 
 
+def screen_runs(data: FitData) -> list[int]:
+    """The runs a wheel's grid is screened on: the lowest and the highest current (the
+    wheel is the rig's, in every run; the damper's share of the beam differs most between
+    them), or every run when there are two or fewer.
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace as NS
+    >>> screen_runs(NS(n_runs=5, currents=np.array([0.5, 0.0, 1.0, 0.25, 0.75])))
+    [1, 2]
+    """
+    if data.n_runs <= SCREEN_RUNS:
+        return list(range(data.n_runs))
+    order = np.argsort(np.asarray(data.currents, dtype=float), kind="stable")
+    return sorted({int(order[0]), int(order[-1])})
+
+
 def screen_cells(
     data: FitData, fit: OEFit, name: str, starts: list[dict]
-) -> list[tuple[float, OEFit, float]]:
+) -> list[tuple[float, np.ndarray, dict, dict]]:
     """The least damped start of every (wheel frequency, inertia) cell of the grid, each
-    fitted by :data:`WHEEL_SCREEN_NFEV` Levenberg-Marquardt iterations: ``(BIC, fit, the
-    start's k_w)``, lowest BIC first (failed screens left out)."""
+    fitted by :data:`WHEEL_SCREEN_NFEV` Levenberg-Marquardt iterations on the runs of
+    :func:`screen_runs`, then simulated on every run: ``(RSS, each run's RSS, the screened
+    parameters, the cell's wheel values)``, lowest RSS first (failed screens left out)."""
     cells: dict[tuple, dict] = {}
     for st in starts:  # the least damped start of each cell (a damped one drifts to m_w -> 0)
         cell = (round(float(np.log(st["k_w"] / st["m_w"])), 3), round(float(st["m_w"]), 6))
         if cell not in cells or st["c_w"] < cells[cell]["c_w"]:
             cells[cell] = st
-    grid = list(cells.values())
+    runs = screen_runs(data)
+    sub = data if len(runs) == data.n_runs else data.subset(runs)
     screened = []
-    for st in grid:
+    for st in cells.values():
         par = fit.par.like(st, (*fit.par.effects, name))
-        with np.errstate(all="ignore"):
-            try:
-                new = OutputErrorFitter(data, par, max_nfev=WHEEL_SCREEN_NFEV).fit(heldout=False)
-            except HystdiscError:
-                continue
-        if np.isfinite(new.bic):
-            screened.append((float(new.bic), new, float(st["k_w"])))
+        # a screen, not a fit: no intervals (their Jacobian was a fifth of the cost)
+        x, sub_rss = OutputErrorFitter(sub, par, max_nfev=WHEEL_SCREEN_NFEV).screen(
+            WHEEL_SCREEN_NFEV
+        )
+        if not np.isfinite(sub_rss):
+            continue
+        params = par.params(x)
+        rss, per = _rss_at(data, fit, name, params)
+        if np.isfinite(rss):
+            wheel = {p.name: float(st[p.name]) for p in EFFECTS[name].params}
+            screened.append((rss, per, params, wheel))
     screened.sort(key=lambda b: b[0])
     return screened
 
