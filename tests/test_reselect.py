@@ -70,3 +70,23 @@ def test_the_record_says_what_was_compared(base):
     assert d["effects"] == ["offset"] and d["pick"] == "bouc-wen" and not d["switched"]
     assert d["families"]["dahl"]["heldout_rms"] == fits["dahl"].heldout_rms
     assert set(d["families"]["bouc-wen"]) == {"rms", "heldout_rms", "bic", "admissible"}
+
+
+def test_the_console_table_shows_the_families_with_the_rigs_effect():
+    from hystdisc.results import Results
+
+    res = Results(
+        family="dahl",
+        reselection={
+            "effects": ["offset"],
+            "families": {
+                "dahl": {"heldout_rms": 0.002, "admissible": True},
+                "bouc-wen": {"heldout_rms": 0.001, "admissible": False},
+            },
+            "switched": False,
+            "note": "with offset in every family, dahl is still selected",
+        },
+    )
+    lines = res.family_table().splitlines()
+    assert "held-out RMS with offset: dahl 0.002, bouc-wen 0.001 (not physical)" in lines
+    assert "selection again: with offset in every family, dahl is still selected" in lines
