@@ -232,9 +232,12 @@ def score_structural(
         ``evidence`` is the share of the RSS the best start removes, ``starts`` the starts
         ranked by their RSS (None when the rig has no frequency to start from).
     """
-    starts = structural_starts(fit, data, name)
-    if cells and starts and not data.exp.motion_imposed:
-        starts = [{**fit.params, **w} for w in cells]
+    if cells and not data.exp.motion_imposed:
+        # a later round: the kept cells only (the grid and its residual spectrum unbuilt)
+        has_beam = natural_frequency(fit, data.experiment) is not None
+        starts = [{**fit.params, **w} for w in cells] if has_beam else []
+    else:
+        starts = structural_starts(fit, data, name)
     if not starts:
         return None
     ranked, screened = [], []
