@@ -2,7 +2,7 @@
 
 Each script is converted to a notebook with jupytext and executed by nbclient in a
 ``python3`` kernel with ``HYSTDISC_NOTEBOOK_FAST=1`` (smaller data); the notebooks run
-concurrently, one kernel each. The measured-data notebook runs its data cells only when
+concurrently, one kernel each, talking over IPC sockets. The measured-data notebook runs its data cells only when
 ``HYSTDISC_DATA`` is set.
 """
 
@@ -14,6 +14,7 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import pytest
+from traitlets.config import Config
 
 jupytext = pytest.importorskip("jupytext")
 nbclient = pytest.importorskip("nbclient")
@@ -58,6 +59,11 @@ def _execute(path: Path, workdir: Path):
         timeout=CELL_TIMEOUT,
         kernel_name="python3",
         resources={"metadata": {"path": str(workdir)}},
+        # IPC sockets in the notebook's own folder, not TCP ports: a TCP kernel picks free
+        # ports, releases them and binds them again, and a Dask cluster in another test
+        # worker can take one in between; the kernel then dies before replying (a CI
+        # failure at 7e4a116).
+        config=Config({"KernelManager": {"transport": "ipc", "ip": str(workdir / "kernel")}}),
     )
     env = {k: v for k, v in os.environ.items() if k != "MPLBACKEND"}  # the inline backend
     env["HYSTDISC_NOTEBOOK_FAST"] = "1"
