@@ -2,8 +2,8 @@
 
 Each script is converted to a notebook with jupytext and executed by nbclient in a
 ``python3`` kernel with ``HYSTDISC_NOTEBOOK_FAST=1`` (smaller data); the notebooks run
-concurrently, one kernel each, talking over IPC sockets. The measured-data notebook runs its data cells only when
-``HYSTDISC_DATA`` is set.
+concurrently, one kernel each, talking over IPC sockets. The measured-data notebook runs
+its data cells only when ``HYSTDISC_DATA`` is set.
 """
 
 from __future__ import annotations
