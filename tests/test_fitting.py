@@ -127,6 +127,38 @@ def test_intervals_contain_the_truth_on_noisy_data():
     assert fit.heldout_rms is not None and fit.heldout_rms < 2e-3
 
 
+def test_a_fold_whose_linear_step_is_exact_skips_the_iterations(monkeypatch):
+    import dataclasses
+
+    from hystdisc.fitting import output_error
+
+    fd = _release_data(noise=1e-3, seed=11)
+    par = FamilyParametrization("dahl", "release", _start(1.1))
+    fitter = OutputErrorFitter(fd, par, max_nfev=60)
+    fit = fitter.fit(heldout=False)
+    calls = []
+    lm = output_error.levenberg_marquardt
+
+    def counted(*args, **kwargs):
+        calls.append(1)
+        return lm(*args, **kwargs)
+
+    monkeypatch.setattr(output_error, "levenberg_marquardt", counted)
+    # at the noise floor each fold's Gauss-Newton step is where its iterations end
+    fast = fitter.heldout_at(fit).heldout_rms
+    assert not calls
+    monkeypatch.setattr(output_error, "HELDOUT_GN_TRUST", 0.0)
+    slow = OutputErrorFitter(fd, par, max_nfev=60).heldout_at(fit).heldout_rms
+    assert len(calls) == fd.n_runs  # one fold per run, each iterated
+    assert fast == pytest.approx(slow, rel=1e-4)
+    # a fit far from its optimum: the step misses its linear prediction and is iterated
+    monkeypatch.setattr(output_error, "HELDOUT_GN_TRUST", 0.1)
+    calls.clear()
+    off = dataclasses.replace(fit, x=fit.x * 1.3)
+    OutputErrorFitter(fd, par, max_nfev=60).heldout_at(off)
+    assert calls
+
+
 def test_a_state_space_model_is_fitted_like_a_family():
     """The output-error fit takes any state-space model: the SAS beam on a compliant wheel
     (two extra states), started at the truth, stays there with the noise as its residual
