@@ -15,7 +15,7 @@ families when none is) and whose held-out error (leave one test condition out, o
 run) is not clearly worse than the best one's; among them the lowest BIC wins, ties
 resolved towards the fewest parameters (:func:`~hystdisc.fitting.selection.select_family`).
 When BIC alone would have chosen another family, ``selection_note_`` says so; when the
-loop accepts an effect of the rig, the families are compared again with it
+loop accepts effects with a term form, the families are compared again with them
 (``reselection_``, :mod:`hystdisc.closing.reselect`). Families
 whose BIC lies within :data:`EQUAL_FIT_BIC` (6) of the selected one are reported as
 fitting equally well (``equal_fits_``).
@@ -47,7 +47,7 @@ from sklearn.base import BaseEstimator
 from threadpoolctl import threadpool_limits
 
 from hystdisc.closing import LoopResult, close_loop
-from hystdisc.closing.reselect import Reselection, reselect, rig_effects
+from hystdisc.closing.reselect import Reselection, reselect, term_effects
 from hystdisc.closing.residual import NOISE_RATIO
 from hystdisc.data import (
     Dataset,
@@ -267,7 +267,7 @@ class Discovery(BaseEstimator):
     final_fit_ : OEFit
         The selected family with every accepted effect (its own fit without the loop).
     reselection_ : Reselection or None
-        The families compared again with the rig effects the loop accepted (None: none).
+        The families compared again with the effects the loop accepted (None: none).
     effects_ : list of str
         The accepted effects.
     final_admissibility_ : Admissibility
@@ -745,7 +745,7 @@ class Discovery(BaseEstimator):
         if self.close_loop:
             self.loop_ = self._close_loop(selected, eq, fd, say)
         self.reselection_: Reselection | None = None
-        rig = rig_effects(self.loop_.effects) if self.loop_ is not None else []
+        rig = term_effects(self.loop_.effects) if self.loop_ is not None else []
         staged_changed = self.staged_ is not None and self.staged_.changed
         if rig and self.model is None and self.family_ in fams and len(fams) > 1:
             if not staged_changed:  # the staged laws belong to the selected family alone

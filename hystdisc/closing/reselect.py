@@ -1,22 +1,24 @@
-"""The families compared again with the rig's effects the closing loop accepted.
+"""The families compared again with the effects the closing loop accepted.
 
-An effect of the rig or of the measurement chain (:attr:`hystdisc.models.Effect.rig`: the
-spring's neutral angle, its stiffening, a delay between two channels) is not a property of
-the damper: every family shares it. The family table compares the families without it,
-where it distorts each fit differently. On a Bouc-Wen release whose spring rests 20 mrad
-off the sensor zero, both Bouc-Wen forms were bent into generating energy (not physical),
-LuGre was selected, and the loop covered the rest of its misfit with quadratic damping and
-a compliant wheel, at 1.13x the noise.
+The family table compares the families without any effect, and an effect the data carry
+distorts each family's fit differently. On a Bouc-Wen release whose spring rests 20 mrad
+off the sensor zero (an effect of the rig, :attr:`hystdisc.models.Effect.rig`), both
+Bouc-Wen forms were bent into generating energy (not physical), LuGre was selected, and
+the loop covered the rest of its misfit with quadratic damping and a compliant wheel, at
+1.13x the noise. On a standard-form Bouc-Wen damper with quadratic damping (an effect of
+the damper), the seed form mimicked the standard form's missing term better, was selected
+by 290 BIC, and the loop then found the quadratic damping on the wrong form (and, with
+exact Jacobians, a Coulomb friction to trim the form's misfit).
 
-When the loop accepts such an effect, :func:`reselect` has every family fitted with it
-(:func:`refit_families`: from stage 1's start of family plus effects and from the
-family's own optimum with the effect at the loop's values, each judged on held-out data)
-and picks one by the family table's rule
+When the loop accepts effects with a term form, :func:`reselect` has every family fitted
+with those it can carry (:func:`refit_families`: from stage 1's start of family plus
+effects and from the family's own optimum with the effects at the loop's values, each
+judged on held-out data) and picks one by the family table's rule
 (:func:`~hystdisc.fitting.selection.select_family`: admissible, held-out error, BIC);
 when that is another family, the loop is closed again from that family's fit, and the
 switch is kept only when the new final model predicts the held-out runs better than the
-first one did (:class:`Reselection` records both). A structural effect (a compliant wheel) is not
-carried to another family: it is fitted as its own state-space system.
+first one did (:class:`Reselection` records both). A structural effect (a compliant wheel)
+is not carried to another family: it is fitted as its own state-space system.
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from hystdisc.closing.refit import refit_with, stage1_start
+from hystdisc.closing.refit import candidate_effects, refit_with, stage1_start
 from hystdisc.closing.residual import NOISE_RATIO
 from hystdisc.fitting import FitData, OEFit
 from hystdisc.fitting.selection import select_family
@@ -33,15 +35,16 @@ from hystdisc.models import EFFECTS
 from hystdisc.simulation.admissibility import check_admissible
 
 
-def rig_effects(effects: Sequence[str]) -> list[str]:
-    """The effects in ``effects`` that belong to the rig and have a term form.
+def term_effects(effects: Sequence[str]) -> list[str]:
+    """The effects in ``effects`` that have a term form (not a structural one): the ones
+    every family is fitted with again.
 
     Examples
     --------
-    >>> rig_effects(["offset", "quadratic_damping", "series_compliance", "cubic_stiffness"])
-    ['offset', 'cubic_stiffness']
+    >>> term_effects(["offset", "quadratic_damping", "series_compliance"])
+    ['offset', 'quadratic_damping']
     """
-    return [e for e in effects if EFFECTS[e].rig and not EFFECTS[e].structural]
+    return [e for e in effects if not EFFECTS[e].structural]
 
 
 def refit_families(
@@ -55,14 +58,16 @@ def refit_families(
     heldout: bool = True,
     mapper: Callable | None = None,
 ) -> dict[str, OEFit]:
-    """Each family's fit with the rig ``effects`` added, judged on held-out data.
+    """Each family's fit with the ``effects`` it can carry, judged on held-out data.
 
     Parameters
     ----------
     family_fits : mapping of str to OEFit
         Each family's output-error fit without the effects (term families).
     effects : sequence of str
-        The rig effects (term form) to add to every family.
+        The effects (term form) to add; each family takes the ones that are candidates
+        for it (:func:`~hystdisc.closing.refit.candidate_effects`: a family that already
+        has an effect's terms keeps its own).
     data : FitData
         The output-error data.
     eq : EqData
@@ -82,18 +87,23 @@ def refit_families(
     Returns
     -------
     dict of str to OEFit
-        Family name -> its fit with the effects, in the order of ``family_fits``.
+        Family name -> its fit with the effects, in the order of ``family_fits`` (its
+        table fit when it can carry none of them).
     """
     names = list(family_fits)
     good = NOISE_RATIO * data.noise_std
 
     def one(name: str) -> OEFit:
         fit = family_fits[name]
-        start = stage1_start(eq, fit, list(effects), data, s0=shapes(fit))
+        can = set(candidate_effects(fit, data)[0])
+        added = [e for e in effects if e in can]
+        if not added:
+            return fit
+        start = stage1_start(eq, fit, added, data, s0=shapes(fit))
         return refit_with(
             data,
             fit,
-            list(effects),
+            added,
             estimate=dict(values),
             max_nfev=max_nfev,
             heldout=heldout,
@@ -107,12 +117,12 @@ def refit_families(
 
 @dataclass
 class Reselection:
-    """The families compared again with the rig effects the loop accepted.
+    """The families compared again with the effects the loop accepted.
 
     Attributes
     ----------
     effects : list of str
-        The rig effects every family was refitted with.
+        The effects every family was refitted with (those it can carry).
     fits : dict of str to OEFit
         Each family's fit with them.
     admissible : dict of str to bool
@@ -179,7 +189,7 @@ def reselect(
     mapper: Callable | None = None,
     say: Callable[[str], None] | None = None,
 ) -> Reselection:
-    """Compare the families again with the rig ``effects`` the loop accepted on ``before``.
+    """Compare the families again with the ``effects`` the loop accepted on ``before``.
 
     Every family is refitted with them (:func:`refit_families`) and the usual rule picks
     one (:func:`~hystdisc.fitting.selection.select_family`). When that is another family,
@@ -196,7 +206,7 @@ def reselect(
     loop : LoopResult
         The loop closed on ``before`` (its final fit carries the effects' values).
     effects : sequence of str
-        The accepted rig effects (:func:`rig_effects`).
+        The accepted effects with a term form (:func:`term_effects`).
     data : FitData
         The output-error data.
     eq : EqData
@@ -224,7 +234,7 @@ def reselect(
     final = loop.fit
     values = {p.name: final.params[p.name] for e in effects for p in EFFECTS[e].params}
     names = ", ".join(effects)
-    say(f"selection again: every family with {names} (the rig's, not the damper's)")
+    say(f"selection again: every family with {names}")
     fits = refit_families(family_fits, effects, data, eq, values, shapes, max_nfev, heldout, mapper)
     adm = {n: check_admissible(f.term_part, envelope) for n, f in fits.items()}
     pick, _ = select_family(fits, adm)
@@ -251,8 +261,8 @@ def reselect(
         return res
     res.switched = True
     res.note = (
-        f"{before} was selected without {names}, which the loop then found (an effect of "
-        f"the rig, shared by every family); with {names}, {pick} predicts the held-out "
-        f"runs better ({held}), and so does its final model ({h1s} vs {h0s}): {pick} selected"
+        f"{before} was selected without {names}, which the loop then found; with {names} "
+        f"in every family, {pick} predicts the held-out runs better ({held}), and so does "
+        f"its final model ({h1s} vs {h0s}): {pick} selected"
     )
     return res

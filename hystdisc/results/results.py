@@ -194,9 +194,8 @@ class Results(Record):
         ``fitted``), ``explained`` (candidates the model reproduces, kept in the fit),
         ``threshold_sigma``, ``left_out``; None in files written before it.
     reselection : dict or None
-        Present when the closing loop accepted an effect of the rig (an offset, the
-        spring's stiffening, a channel delay) on a selected family: every family refitted
-        with it (``families``: ``rms``, ``heldout_rms``, ``bic``, ``admissible``), the
+        Present when the closing loop accepted effects with a term form on a selected
+        family: every family refitted with those it can carry (``families``: ``rms``, ``heldout_rms``, ``bic``, ``admissible``), the
         family selected ``before``, the ``pick`` among those fits, whether the selection
         ``switched`` to it (its final model predicts the held-out runs better:
         ``final_heldout``), and a ``note`` (:class:`hystdisc.closing.reselect.Reselection`).
