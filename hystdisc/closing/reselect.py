@@ -16,8 +16,8 @@ effects and from the family's own optimum with the effects at the loop's values,
 judged on held-out data) and picks one by the family table's rule
 (:func:`~hystdisc.fitting.selection.select_family`: admissible, held-out error, BIC);
 when that is another family, the loop is closed again from that family's fit, and the
-switch is kept only when the new final model predicts the held-out runs better than the
-first one did (:class:`Reselection` records both). A structural effect (a compliant wheel)
+switch is kept only when the same rule, applied to the two final models, selects the new
+one (:class:`Reselection` records both). A structural effect (a compliant wheel)
 is not carried to another family: it is fitted as its own state-space system.
 """
 
@@ -133,7 +133,8 @@ class Reselection:
         The family the usual rules select among ``fits``.
     switched : bool
         True when ``pick`` differs from ``before`` and its final model (the loop closed
-        again from it) predicts the held-out runs better: it is the selected family.
+        again from it) is selected over ``before``'s by the same rule: it is the selected
+        family.
     final_heldout : dict of str to float or None
         The held-out RMS of the final model of ``before`` and (when the loop was closed
         again) of ``pick``.
@@ -194,8 +195,8 @@ def reselect(
     Every family is refitted with them (:func:`refit_families`) and the usual rule picks
     one (:func:`~hystdisc.fitting.selection.select_family`). When that is another family,
     the loop is closed again from its fit (``close``), and the switch is made
-    (``switched``) only when the new final model predicts the held-out runs better than
-    ``loop``'s and is admissible.
+    (``switched``) only when the same rule, applied to the new final model and ``loop``'s,
+    selects the new one and it is admissible.
 
     Parameters
     ----------
@@ -239,30 +240,39 @@ def reselect(
     adm = {n: check_admissible(f.term_part, envelope) for n, f in fits.items()}
     pick, _ = select_family(fits, adm)
     res = Reselection(list(effects), fits, {n: a.ok for n, a in adm.items()}, before, pick)
-    h0 = final.heldout_rms
-    res.final_heldout[before] = h0
+    res.final_heldout[before] = final.heldout_rms
     if pick == before:
         res.note = f"with {names} in every family, {before} is still selected"
         return res
-    say(f"selection again: {pick} with {names} predicts better; closing the loop from it")
+    say(f"selection again: {pick} is selected with {names}; closing the loop from it")
     res.loop = close(family_fits[pick])
     new = res.loop.fit
-    h1 = new.heldout_rms
-    res.final_heldout[pick] = h1
-    better = (h1 < h0) if h0 is not None and h1 is not None else new.bic < final.bic
-    admissible = check_admissible(new.model if new.is_system else new.term_part, envelope).ok
-    held = f"held-out {fits[pick].heldout_rms:.4g} vs {fits[before].heldout_rms:.4g}"
-    h1s, h0s = (f"{h:.4g}" if h is not None else "-" for h in (h1, h0))
-    if not (better and admissible):
+    res.final_heldout[pick] = new.heldout_rms
+    # the two final models, judged by the same rule
+    finals = {before: final, pick: new}
+    fadm = {
+        n: check_admissible(f.model if f.is_system else f.term_part, envelope)
+        for n, f in finals.items()
+    }
+    winner, _ = select_family(finals, fadm)
+    table = _versus(fits[pick], fits[before])
+    if winner != pick or not fadm[pick].ok:
+        why = "" if fadm[pick].ok else f", not physical: {fadm[pick].violations[0]}"
         res.note = (
-            f"with {names} in every family {pick} predicted better than {before} ({held}), "
-            f"but its final model did not (held-out {h1s} vs {h0s}): {before} kept"
+            f"with {names} in every family {pick} was selected over {before} ({table}), "
+            f"but its final model was not ({_versus(new, final)}{why}): {before} kept"
         )
         return res
     res.switched = True
     res.note = (
         f"{before} was selected without {names}, which the loop then found; with {names} "
-        f"in every family, {pick} predicts the held-out runs better ({held}), and so does "
-        f"its final model ({h1s} vs {h0s}): {pick} selected"
+        f"in every family {pick} is selected ({table}), and so is its final model "
+        f"({_versus(new, final)}): {pick} selected"
     )
     return res
+
+
+def _versus(a: OEFit, b: OEFit) -> str:
+    """``held-out A vs B, BIC A vs B`` of two fits, for a note."""
+    ha, hb = (f"{h:.4g}" if h is not None else "-" for h in (a.heldout_rms, b.heldout_rms))
+    return f"held-out {ha} vs {hb}, BIC {a.bic:.1f} vs {b.bic:.1f}"

@@ -195,9 +195,10 @@ class Results(Record):
         ``threshold_sigma``, ``left_out``; None in files written before it.
     reselection : dict or None
         Present when the closing loop accepted effects with a term form on a selected
-        family: every family refitted with those it can carry (``families``: ``rms``, ``heldout_rms``, ``bic``, ``admissible``), the
-        family selected ``before``, the ``pick`` among those fits, whether the selection
-        ``switched`` to it (its final model predicts the held-out runs better:
+        family: every family refitted with those it can carry (``families``: ``rms``,
+        ``heldout_rms``, ``bic``, ``admissible``), the family selected ``before``, the
+        ``pick`` among those fits, whether the selection ``switched`` to it (the same rule
+        selects its final model over ``before``'s; their held-out RMS in
         ``final_heldout``), and a ``note`` (:class:`hystdisc.closing.reselect.Reselection`).
     extra : dict
         Keys this version does not know (kept on a round trip).
