@@ -9,7 +9,7 @@ of the output with respect to each run's term vector and initial state in the sa
 the output (:func:`~hystdisc.fitting.simulate.simulate_sensitivities`), and the chain rule
 through the (cheap) map from the free parameters to the term vectors gives the columns. A
 state-space model's Jacobian, a diverged simulation's and, on request
-(:data:`JACOBIAN`), any model's are forward differences, all columns in one batched
+(:data:`JACOBIAN`, ``jacobian_mode``), any model's are forward differences, all columns in one batched
 simulation call (a run's nuisance parameters only touch that run, so only that run is
 re-simulated).
 
@@ -56,15 +56,16 @@ HELDOUT_STEPS = 2
 #: of one parameter's chi-square; measured on data_synth, the held-out RMS agrees to 4-6
 #: digits in those folds, while a fit at a bound misses by thousands of variances).
 HELDOUT_GN_TRUST = 0.1
-#: How the Jacobian is computed unless a fitter is told otherwise: ``"forward"`` (forward
-#: differences) or ``"exact"`` (the forward sensitivities of the term kernels, 2.3x faster
-#: per Jacobian, 1.44x per discovery, tested against central differences). Forward is the
-#: default because the answers change with the exact one: measured at 68d5560
-#: (``benchmarks/check_unchanged.py``), the loop then adds ``series_compliance`` on
-#: ``data_synth/effect_offset.csv`` and ``coulomb`` on ``effect_quadratic_damping.csv``
-#: (the compliant wheel of ``tests/test_compliance.py``, which once ended in another
-#: basin with it, is found with either since its refit's starts are screened).
-JACOBIAN = "forward"
+#: How the Jacobian is computed unless a fitter is told otherwise: ``"exact"`` (the forward
+#: sensitivities of the term kernels, 2.3x faster per Jacobian than forward differences,
+#: tested against central differences) or ``"forward"`` (forward differences). Exact is
+#: the default since the families are compared again with every accepted effect
+#: (:mod:`hystdisc.closing.reselect`): measured with ``benchmarks/check_unchanged.py``,
+#: both give the same family, effects and parameters (to 0.01 standard errors) on every
+#: ``data_synth/*.csv``. Before that, at 68d5560, the loop added ``coulomb`` on
+#: ``effect_quadratic_damping.csv`` with the exact one: it trimmed the misfit of the wrong
+#: Bouc-Wen form, which the table had selected and which now loses to the true one.
+JACOBIAN = "exact"
 
 
 @dataclass
@@ -255,13 +256,16 @@ class OutputErrorFitter:
         return self._resid_from(preds, runs)
 
     def jacobian(self, v: np.ndarray) -> np.ndarray:
-        """Jacobian of :meth:`residuals` (masked rows, all of ``v``): forward differences
-        (:meth:`difference_jacobian`, the default :data:`JACOBIAN`); with
-        ``jacobian_mode="exact"``, the kernels' sensitivities for a model in term form
-        (:func:`~hystdisc.fitting.jacobian.exact_jacobian`; forward differences where the
-        simulation diverges) and, when ``system_jacobian.METHOD`` is ``"lockstep"``,
-        lockstep differences for a state-space model
-        (:func:`~hystdisc.fitting.system_jacobian.system_jacobian`)."""
+        """Jacobian of :meth:`residuals` (masked rows, all of ``v``).
+
+        With ``jacobian_mode="exact"`` (the default :data:`JACOBIAN`), the kernels'
+        sensitivities for a model in term form
+        (:func:`~hystdisc.fitting.jacobian.exact_jacobian`). Forward differences
+        (:meth:`difference_jacobian`) where the simulation diverges, for a state-space
+        model, and with ``jacobian_mode="forward"``; lockstep differences for a
+        state-space model when ``system_jacobian.METHOD`` is ``"lockstep"``
+        (:func:`~hystdisc.fitting.system_jacobian.system_jacobian`).
+        """
         if self.jacobian_mode != "forward" and lockstep_applies(self.par):
             return system_jacobian(
                 self.data, self.par, v, self.rel_step, self.masks, self.row_offsets

@@ -43,7 +43,7 @@ from hystdisc.simulation.ode import simulate_lockstep
 #: ``"forward"`` (the fitter's forward differences of separately controlled runs, which
 #: need the integration far tighter than the difference step). The default stays
 #: ``"forward"`` with the tolerances it needs (``SYSTEM_RTOL`` 1e-10): with lockstep, the
-#: compliant wheel's refit ends in another basin (see ``output_error.JACOBIAN``).
+#: compliant wheel's refit ends in another basin (``tests/test_compliance.py``).
 METHOD = "forward"
 #: The integration tolerances the lockstep Jacobian needs (set ``SYSTEM_RTOL``/``ATOL`` of
 #: :mod:`hystdisc.fitting.simulate` to them with ``METHOD = "lockstep"``): measured on the
