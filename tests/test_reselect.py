@@ -9,18 +9,25 @@ of the damper).
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from hystdisc import Discovery
 from hystdisc.cli import main
 from hystdisc.closing.reselect import Reselection, refit_families, term_effects
 from hystdisc.data import load
+from hystdisc.discovery import FAMILY_SHAPE
 from hystdisc.fitting.selection import select_family
 from hystdisc.simulation.admissibility import check_admissible
 
 TRUTH = "alpha_1=0.7,alpha_2=1.1,c_1=0.35,c_2=0.8,beta=14,gamma=7,n=1.5,k_s=190"
 THETA_OFF = -0.015
 NOISE = 1e-3
+
+
+def _stage1_shape(disc):
+    """Each family's stage-1 shape constants, from the estimator's public ``stage1_``."""
+    return lambda fit: np.asarray(disc.stage1_[FAMILY_SHAPE[fit.par.family.name]].s)
 
 
 @pytest.fixture(scope="module")
@@ -50,7 +57,7 @@ def test_with_the_offset_every_family_is_judged_fairly_and_the_true_one_wins(bas
         base.fit_data_,
         base.eq_data_,
         {"theta_off": 0.0},
-        base._stage1_shape,
+        _stage1_shape(base),
     )
     adm = {n: check_admissible(f.term_part, base.envelope_) for n, f in fits.items()}
     pick, _ = select_family(fits, adm)
@@ -82,7 +89,7 @@ def test_a_damper_effect_found_on_the_wrong_form_is_carried_to_the_right_one(tmp
     assert base.family_ == "bouc-wen" and table["bouc-wen"].rms > 1.1 * base.noise_std_
     fits = refit_families(
         table, ["quadratic_damping"], base.fit_data_, base.eq_data_, {"c_q": 0.0},
-        base._stage1_shape,
+        _stage1_shape(base),
     )  # fmt: skip
     adm = {n: check_admissible(f.term_part, base.envelope_) for n, f in fits.items()}
     pick, _ = select_family(fits, adm)
