@@ -278,6 +278,30 @@ def test_a_diverging_start_falls_back_to_forward_differences():
         np.testing.assert_array_equal(fitter.jacobian(v), fitter.difference_jacobian(v))
 
 
+def test_sensitivities_too_large_for_the_gram_fall_back_to_forward_differences():
+    # where a LuGre fit wandered on a noise-free encoder record (stress suite, dahl/0):
+    # sigma_0 -> 0 and a_0 at its bound; the output stays bounded, its sensitivities reach
+    # 1e200 and their Gram matrix overflowed (a crash at the intervals)
+    ds = generate("dahl", "release", currents=(0.0,), duration=2.0, fs=1000.0, seed=3)
+    run = ds.runs[0]
+    theta = np.asarray(run.theta, dtype=float)
+    fd = FitData(
+        "release", [run.name], [run.t], [theta], np.array([0.0]), [theta],
+        [np.gradient(theta, run.t)], [np.zeros(theta.size)], [np.ones(theta.size, bool)],
+        1e-3,
+    )  # fmt: skip
+    wild = {"sigma_a": 54.9, "sigma_0": 2.17e-6, "sigma_1": 1.207e4, "sigma_2": 56.05}
+    wild.update({"sigma_b": 0.0, "a_0": 1e9, "k_s": 1455.8})
+    par = FamilyParametrization("lugre", "release", wild)
+    fitter = OutputErrorFitter(fd, par)
+    v = np.concatenate([par.x0, fd.nuisance_start(True)])
+    x, nu = v[: par.x0.size], v[par.x0.size :].reshape(fd.n_runs, -1)
+    with np.errstate(all="ignore"):
+        assert exact_jacobian(fd, par, x, nu, True, fitter.masks, fitter.rel_step) is None
+        J = fitter.jacobian(v)
+    assert np.all(np.isfinite(fitter.gram(J)))
+
+
 def test_the_jacobian_mode_chooses_the_method():
     fd = _fit_data("dahl", "release")
     par = FamilyParametrization("dahl", "release", {})

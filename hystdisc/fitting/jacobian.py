@@ -129,7 +129,8 @@ def exact_jacobian(
     -------
     ndarray or None
         Rows: the masked samples, run after run; columns: ``x``, then each run's initial
-        states. None when a run diverges (its sensitivities are then meaningless).
+        states. None when a run diverges (its sensitivities are then meaningless) or a
+        sensitivity is so large that the Gram matrix would overflow.
     """
     R, k = data.n_runs, x.size
     nnu = nu.shape[1]
@@ -152,7 +153,11 @@ def exact_jacobian(
             rows = slice(offsets[q], offsets[q + 1])
             Jm[rows, :k] = cols[masks[q], :k]
             Jm[rows, k + q * nnu : k + (q + 1) * nnu] = cols[masks[q], k:]
-    return Jm
+    # a sensitivity can grow without bound where the output stays bounded (a stiff state
+    # far from its fixed point): when J^T J would overflow, the caller takes forward
+    # differences, which only see the output's own changes
+    big = np.sqrt(np.finfo(float).max / max(Jm.shape[0], 1))
+    return Jm if np.all(np.isfinite(Jm)) and np.abs(Jm).max(initial=0.0) < big else None
 
 
 def _measured_columns(data, par, r, x, tm0, y, cols, delays, rel_step) -> None:

@@ -412,6 +412,9 @@ class OutputErrorFitter:
         # covariance with column scaling for conditioning
         # the small Gram matrix, column-scaled (no scaled copy of the tall Jacobian)
         gram = self.gram(Jm)
+        if not np.all(np.isfinite(gram)):  # e.g. the LM's last Jacobian at a far start
+            Jm = self.difference_jacobian(v)
+            gram = self.gram(Jm)
         scale = np.sqrt(np.clip(np.diag(gram), 0.0, None))
         scale[scale == 0] = 1.0
         # eigen-decomposition of the small Gram matrix (much cheaper than an SVD of J)
