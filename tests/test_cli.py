@@ -113,3 +113,22 @@ def test_make_discovery_passes_the_command_line_options():
     assert disc.seed == 3
     assert disc.heldout is False
     assert disc.close_loop is True
+
+
+def test_a_bug_is_one_line_with_its_own_exit_code(monkeypatch, capsys):
+    from hystdisc.cli import main
+    from hystdisc.cli import simulate as simulate_cmd
+
+    def broken(args):
+        raise ZeroDivisionError("float division by zero")
+
+    monkeypatch.setattr(simulate_cmd, "run", broken)
+    monkeypatch.delenv("HYSTDISC_TRACEBACK", raising=False)
+    assert main(["simulate", "--model", "dahl", "-o", "x.csv"]) == 3
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert err.startswith("hystdisc: internal error: ZeroDivisionError: float division by zero;")
+    assert "HYSTDISC_TRACEBACK=1" in err
+    monkeypatch.setenv("HYSTDISC_TRACEBACK", "1")
+    with pytest.raises(ZeroDivisionError):
+        main(["simulate", "--model", "dahl", "-o", "x.csv"])

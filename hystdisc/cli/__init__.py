@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 import warnings
 
@@ -92,6 +93,16 @@ def main(argv: list[str] | None = None) -> int:
             file=sys.stderr,
         )
         return 130
+    except Exception as exc:  # a bug, not the user's input: one line, the traceback on request
+        if os.environ.get("HYSTDISC_TRACEBACK"):
+            raise
+        print(
+            f"hystdisc: internal error: {type(exc).__name__}: {exc}; this is a bug in hystdisc, "
+            "not a problem with your data (fix: report it with the command and the data; "
+            "HYSTDISC_TRACEBACK=1 prints the traceback)",
+            file=sys.stderr,
+        )
+        return 3
 
 
 if __name__ == "__main__":  # pragma: no cover
