@@ -13,6 +13,7 @@ the reference and a table is written:
 
 Run:  python benchmarks/check_unchanged.py --record   (on the reference commit)
       python benchmarks/check_unchanged.py            (writes benchmarks/results/unchanged.md)
+      ... --save answers.json                          (also keeps this run's answers)
 Exit code 1 when a family, an effect or a parameter beyond 0.01 standard errors differs.
 """
 
@@ -94,6 +95,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--record", action="store_true", help="write the reference")
     ap.add_argument("--files", default="*.csv", help="glob in data_synth/ (default *.csv)")
     ap.add_argument("--out", default=str(RESULTS / "unchanged.md"))
+    ap.add_argument(
+        "--save", default=None, help="also write this run's answers (the reference's format)"
+    )
     args = ap.parse_args(argv)
     files = sorted((ROOT / "data_synth").glob(args.files))
     commit = subprocess.run(
@@ -104,8 +108,11 @@ def main(argv: list[str] | None = None) -> int:
         for f in files:
             answers[f.name] = answer(f, Path(tmp))
             print(f"{f.name}: {answers[f.name]['family']} ({answers[f.name]['wall_s']} s)")
+    record = json.dumps({"commit": commit, "answers": answers}, indent=1) + "\n"
+    if args.save:
+        Path(args.save).write_text(record)
     if args.record:
-        REFERENCE.write_text(json.dumps({"commit": commit, "answers": answers}, indent=1) + "\n")
+        REFERENCE.write_text(record)
         print(f"wrote {REFERENCE}")
         return 0
     ref = json.loads(REFERENCE.read_text())
