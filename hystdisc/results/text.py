@@ -39,10 +39,15 @@ def family_table(res: Results) -> str:
             else "each run (the runs share one test condition)"
         )
         rows.append(f"held-out RMS: {what} predicted by the fit without it")
+    # the table's fits; with a re-selection, the families were fitted again with effects
+    rs = res.reselection or {}
+    without = f" without {', '.join(rs.get('effects', []))}" if rs else ""
+    for name, f in res.families.items():
+        for v in f.violations:
+            rows.append(f"{name} is not physical{without}: {v}")
     if res.selection_note:
         rows.append(f"selection: {res.selection_note}")
-    if res.reselection:  # the families compared again with the rig's effects
-        rs = res.reselection
+    if rs:  # the families compared again with the loop's effects
         cells = [
             f"{n} {_num(e.get('heldout_rms'), '.4g')}{'' if e.get('admissible') else ' (not physical)'}"
             for n, e in rs.get("families", {}).items()
@@ -50,9 +55,6 @@ def family_table(res: Results) -> str:
         rows.append(f"held-out RMS with {', '.join(rs.get('effects', []))}: " + ", ".join(cells))
         if not rs.get("switched"):
             rows.append(f"selection again: {rs.get('note')}")
-    for name, f in res.families.items():
-        for v in f.violations:
-            rows.append(f"{name} is not physical: {v}")
     return "\n".join(rows)
 
 
