@@ -745,13 +745,13 @@ class Discovery(BaseEstimator):
         if self.close_loop:
             self.loop_ = self._close_loop(selected, eq, fd, say)
         self.reselection_: Reselection | None = None
-        rig = term_effects(self.loop_.effects) if self.loop_ is not None else []
+        carried = term_effects(self.loop_.effects) if self.loop_ is not None else []
         staged_changed = self.staged_ is not None and self.staged_.changed
-        if rig and self.model is None and self.family_ in fams and len(fams) > 1:
+        if carried and self.model is None and self.family_ in fams and len(fams) > 1:
             if not staged_changed:  # the staged laws belong to the selected family alone
                 table = {n: self.family_fits_[n] for n in fams}
                 close = lambda fit: self._close_loop(fit, eq, fd, say)  # noqa: E731
-                res = reselect(table, self.family_, self.loop_, rig, fd, eq, self.envelope_,
+                res = reselect(table, self.family_, self.loop_, carried, fd, eq, self.envelope_,
                                close, self._stage1_shape, self.max_nfev, self.heldout,
                                self._map, say)  # fmt: skip
                 self.reselection_ = res

@@ -8,8 +8,8 @@ of a model in term form is exact: the compiled kernels integrate the forward sen
 of the output with respect to each run's term vector and initial state in the same pass as
 the output (:func:`~hystdisc.fitting.simulate.simulate_sensitivities`), and the chain rule
 through the (cheap) map from the free parameters to the term vectors gives the columns. A
-state-space model's Jacobian, a diverged simulation's and, on request
-(:data:`JACOBIAN`, ``jacobian_mode``), any model's are forward differences, all columns in one batched
+state-space model's Jacobian, a diverged simulation's and, on request (:data:`JACOBIAN`,
+``jacobian_mode``), any model's are forward differences, all columns in one batched
 simulation call (a run's nuisance parameters only touch that run, so only that run is
 re-simulated).
 
