@@ -278,6 +278,7 @@ def evaluate(res: dict, case: Case) -> dict:
     chosen = final.get("family", res.get("family"))
     effects = [e if isinstance(e, str) else e.get("name", str(e)) for e in final.get("effects", [])]
     family_ok = chosen == case.family and not effects
+    equal = list(res.get("equal_fits") or [])
     if chosen == case.family:
         fit, source = final, "final"
     else:
@@ -335,6 +336,11 @@ def evaluate(res: dict, case: Case) -> dict:
         "success": all(crit[k] for k in ("family", "params", "rms", "ci")),
         "success_joint": all(crit[k] for k in ("family", "params", "rms", "ci_joint")),
         "success_data": all(crit[k] for k in ("family", "params_data", "rms", "ci_joint")),
+        # the reading the issue leaves open: the truth among the equal fits results.json
+        # names (a selection the data cannot make) counts as the right family
+        "success_data_equal": (family_ok or (case.family in equal and not effects))
+        and all(crit[k] for k in ("params_data", "rms", "ci_joint")),
+        "equal_fits": equal,
         "data_limited": limited,
         "z": zs,
         "criteria": crit,
@@ -431,7 +437,7 @@ def why(rec: dict) -> str:
 def _rate(recs: list[dict], key: str | None = None) -> str:
     if not recs:
         return "-"
-    if key in ("joint", "data"):
+    if key in ("joint", "data", "data_equal"):
         ok = sum(bool(r.get(f"success_{key}")) for r in recs)
     else:
         ok = sum(r["success"] if key is None else bool(r["criteria"].get(key)) for r in recs)
@@ -477,9 +483,15 @@ def render(records: list[dict], meta: dict) -> str:
         "simultaneous. Whether the intervals are honest widths (neither inflated nor "
         "narrow) is measured separately over noise draws: `benchmarks/interval_coverage.py`.",
         "",
+        "**data-limited, equal fit** = success (data-limited), except that a case whose "
+        "selected family is not the true one still counts when results.json names the true "
+        "one among the families that fit equally well (`equal_fits`: BIC within 6 of the "
+        "selected); whether that counts as the right family is an open question of issue 16.",
+        "",
         "| condition | family | n | success | success (simultaneous) | success (data-limited) "
-        "| family | params | params (data limit) | rms | ci | ci simultaneous | param coverage |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "| data-limited, equal fit | family | params | params (data limit) | rms | ci "
+        "| ci simultaneous | param coverage |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     conds = [c for c in CONDITIONS if any(r["condition"] == c for r in records)]
     fams = [f for f in FAMILIES if any(r["family"] == f for r in records)]
@@ -494,7 +506,8 @@ def render(records: list[dict], meta: dict) -> str:
             label = f if f else "**all**"
             lines.append(
                 f"| {c} | {label} | {len(rs)} | {_rate(rs)} | {_rate(rs, 'joint')} | "
-                f"{_rate(rs, 'data')} | {_rate(rs, 'family')} | {_rate(rs, 'params')} | "
+                f"{_rate(rs, 'data')} | {_rate(rs, 'data_equal')} | {_rate(rs, 'family')} | "
+                f"{_rate(rs, 'params')} | "
                 f"{_rate(rs, 'params_data')} | {_rate(rs, 'rms')} | "
                 f"{_rate(rs, 'ci')} | {_rate(rs, 'ci_joint')} | {cov} |"
             )

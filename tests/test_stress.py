@@ -107,6 +107,22 @@ def test_a_parameter_the_data_cannot_tell_to_5_percent_is_judged_at_its_interval
     assert not rec["success_data"] and rec["criteria"]["params_data"]
 
 
+def test_an_equal_fit_that_names_the_truth_is_counted_apart():
+    params, _ = stress.sample_set("bouc-wen-std", 6)
+    case = stress.Case("bouc-wen-std", 6, "white", params)
+    truth = stress.normalized_truth("bouc-wen-std", params)
+    ses = {n: 1e-2 * abs(t) for n, t in truth.items()}
+    true_fit = _results(case, truth, ses)["final"]
+    seed_form = dict(_results(case, truth, ses, family="bouc-wen")["final"])
+    res = {"final": seed_form, "families": {"bouc-wen-std": true_fit}}
+    rec = stress.evaluate(res | {"equal_fits": ["bouc-wen-std"]}, case)
+    assert not rec["criteria"]["family"] and not rec["success_data"]
+    assert rec["success_data_equal"] and rec["equal_fits"] == ["bouc-wen-std"]
+    # not named among the equal fits: wrong under either reading
+    rec = stress.evaluate(res | {"equal_fits": ["lugre"]}, case)
+    assert not rec["success_data"] and not rec["success_data_equal"]
+
+
 def test_intervals_are_honest_over_noise_draws():
     # benchmarks/interval_coverage.py at small scale: one seed-form Bouc-Wen set of the
     # suite, 10 noise draws of 2 s records. Honest standard errors give z-scores of rms 1
