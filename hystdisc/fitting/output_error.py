@@ -412,9 +412,6 @@ class OutputErrorFitter:
         # covariance with column scaling for conditioning
         # the small Gram matrix, column-scaled (no scaled copy of the tall Jacobian)
         gram = self.gram(Jm)
-        if not np.all(np.isfinite(gram)):  # e.g. the LM's last Jacobian at a far start
-            Jm = self.difference_jacobian(v)
-            gram = self.gram(Jm)
         scale = np.sqrt(np.clip(np.diag(gram), 0.0, None))
         scale[scale == 0] = 1.0
         # eigen-decomposition of the small Gram matrix (much cheaper than an SVD of J)
@@ -547,7 +544,14 @@ class OutputErrorFitter:
         try:
             with np.errstate(all="ignore"):
                 vs, *_ = levenberg_marquardt(
-                    sub.residuals, sub.jacobian, v0, lo, hi, max_iter=HELDOUT_STEPS, gram=sub.gram
+                    sub.residuals,
+                    sub.jacobian,
+                    v0,
+                    lo,
+                    hi,
+                    max_iter=HELDOUT_STEPS,
+                    gram=sub.gram,
+                    r0=r0,  # the trust test's simulation is the first iteration's
                 )
         except (HystdiscError, np.linalg.LinAlgError, ValueError):
             return x
