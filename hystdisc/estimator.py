@@ -16,8 +16,11 @@ run) is not clearly worse than the best one's; among them the lowest BIC wins, t
 resolved towards the fewest parameters (:func:`~hystdisc.fitting.selection.select_family`).
 When BIC alone would have chosen another family, ``selection_note_`` says so; when the
 loop accepts effects with a term form, the families are compared again with them
-(``reselection_``, :mod:`hystdisc.closing.reselect`). Families
-whose BIC lies within :data:`EQUAL_FIT_BIC` (6) of the selected one are reported as
+(``reselection_``, :mod:`hystdisc.closing.reselect`); when the selected family's
+intervals hold the values at which it is a smaller family plus effects (LuGre at
+``sigma_1 = 0`` is Dahl with a current-dependent viscous term), the smaller model is
+fitted and selected by the same rule (``reduction_``, :mod:`hystdisc.closing.reduction`).
+Families whose BIC lies within :data:`EQUAL_FIT_BIC` (6) of the selected one are reported as
 fitting equally well (``equal_fits_``).
 
 :class:`Discovery` follows the scikit-learn contract: ``__init__`` only stores its
@@ -47,6 +50,7 @@ from sklearn.base import BaseEstimator
 from threadpoolctl import threadpool_limits
 
 from hystdisc.closing import LoopResult, close_loop
+from hystdisc.closing.reduction import Reduction, reduce_family
 from hystdisc.closing.reselect import Reselection, reselect, term_effects
 from hystdisc.closing.residual import NOISE_RATIO
 from hystdisc.data import (
@@ -268,6 +272,9 @@ class Discovery(BaseEstimator):
         The selected family with every accepted effect (its own fit without the loop).
     reselection_ : Reselection or None
         The families compared again with the effects the loop accepted (None: none).
+    reduction_ : Reduction or None
+        The selected family reduced to a smaller one plus effects, when its intervals
+        hold the values where it is that model (None: no reduction applied).
     effects_ : list of str
         The accepted effects.
     final_admissibility_ : Admissibility
@@ -745,21 +752,36 @@ class Discovery(BaseEstimator):
         if self.close_loop:
             self.loop_ = self._close_loop(selected, eq, fd, say)
         self.reselection_: Reselection | None = None
+        self.reduction_: Reduction | None = None
         carried = term_effects(self.loop_.effects) if self.loop_ is not None else []
         staged_changed = self.staged_ is not None and self.staged_.changed
-        if carried and self.model is None and self.family_ in fams and len(fams) > 1:
-            if not staged_changed:  # the staged laws belong to the selected family alone
-                table = {n: self.family_fits_[n] for n in fams}
-                close = lambda fit: self._close_loop(fit, eq, fd, say)  # noqa: E731
-                res = reselect(table, self.family_, self.loop_, carried, fd, eq, self.envelope_,
-                               close, self._stage1_shape, self.max_nfev, self.heldout,
-                               self._map, say)  # fmt: skip
-                self.reselection_ = res
-                if res.switched:  # the outliers stay as the first selection confirmed them
-                    self.family_, self.selection_note_ = res.pick, res.note
-                    self.loop_ = res.loop
-                    selected = self.family_fits_[res.pick]
+        # the staged laws belong to the selected family alone: no other family replaces it
+        compare = self.model is None and len(fams) > 1 and not staged_changed
+        table = {n: self.family_fits_[n] for n in fams}
+        close = lambda fit: self._close_loop(fit, eq, fd, say)  # noqa: E731
+        if compare and carried and self.family_ in fams:
+            res = reselect(table, self.family_, self.loop_, carried, fd, eq, self.envelope_,
+                           close, self._stage1_shape, self.max_nfev, self.heldout,
+                           self._map, say)  # fmt: skip
+            self.reselection_ = res
+            if res.switched:  # the outliers stay as the first selection confirmed them
+                self.family_, self.selection_note_ = res.pick, res.note
+                self.loop_ = res.loop
+                selected = self.family_fits_[res.pick]
+        if compare and self.loop_ is not None and self.family_ in fams:
+            red = reduce_family(self.loop_, self.family_, table, fd, eq, self.envelope_, close,
+                                self._stage1_shape, self.max_nfev, self.heldout, say)  # fmt: skip
+            self.reduction_ = red
+            if red is not None and red.switched:
+                self.family_, self.selection_note_ = red.to, red.note
+                self.loop_ = red.loop
+                selected = self.family_fits_[red.to]
+        # equal fits: among the fits of the comparison that made the selection
         bics = {n: f.bic for n, f in self.family_fits_.items()}
+        if self.reduction_ is not None and self.reduction_.switched:
+            bics = dict(self.reduction_.final_bic)
+        elif self.reselection_ is not None and self.reselection_.switched:
+            bics = {n: f.bic for n, f in self.reselection_.fits.items()}
         self.equal_fits_ = sorted(
             n
             for n, b in bics.items()

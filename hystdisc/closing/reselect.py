@@ -255,24 +255,24 @@ def reselect(
         for n, f in finals.items()
     }
     winner, _ = select_family(finals, fadm)
-    table = _versus(fits[pick], fits[before])
+    table = versus(fits[pick], fits[before])
     if winner != pick or not fadm[pick].ok:
         why = "" if fadm[pick].ok else f", not physical: {fadm[pick].violations[0]}"
         res.note = (
             f"with {names} in every family {pick} was selected over {before} ({table}), "
-            f"but its final model was not ({_versus(new, final)}{why}): {before} kept"
+            f"but its final model was not ({versus(new, final)}{why}): {before} kept"
         )
         return res
     res.switched = True
     res.note = (
         f"{before} was selected without {names}, which the loop then found; with {names} "
         f"in every family {pick} is selected ({table}), and so is its final model "
-        f"({_versus(new, final)}): {pick} selected"
+        f"({versus(new, final)}): {pick} selected"
     )
     return res
 
 
-def _versus(a: OEFit, b: OEFit) -> str:
+def versus(a: OEFit, b: OEFit) -> str:
     """``held-out A vs B, BIC A vs B`` of two fits, for a note."""
     ha, hb = (f"{h:.4g}" if h is not None else "-" for h in (a.heldout_rms, b.heldout_rms))
     return f"held-out {ha} vs {hb}, BIC {a.bic:.1f} vs {b.bic:.1f}"

@@ -203,7 +203,7 @@ def build_results(disc: Any, dataset: Any) -> Results:
     ``folds()``, ``heldout_by``), ``conditions_``, ``envelope_``, ``admissibility_``,
     ``final_admissibility_``, ``selection_note_``, ``single_current_``, ``currents_``,
     ``noise_`` (optional: the :class:`~hystdisc.data.NoiseEstimate`), ``outliers_`` (its
-    ``to_dict()``), ``reselection_`` (optional, its ``to_dict()``), ``loop_``
+    ``to_dict()``), ``reselection_`` and ``reduction_`` (optional, their ``to_dict()``), ``loop_``
     (the closing loop's ``LoopResult``, or None when it did not run: ``accepted``,
     ``tried``, ``skipped``, ``diagnosis``, ``unexplained``, ``unexplained_text``,
     ``residual``, ``fit``, ``effects``), the parameters ``input_hold`` and ``seed``, and
@@ -286,6 +286,9 @@ def build_results(disc: Any, dataset: Any) -> Results:
     reselection = getattr(disc, "reselection_", None)
     if reselection is not None:  # the families compared again with the rig's effects
         data["reselection"] = reselection.to_dict()
+    reduction = getattr(disc, "reduction_", None)
+    if reduction is not None:  # the selected family reduced to a smaller one plus effects
+        data["reduction"] = reduction.to_dict()
     staged = getattr(disc, "staged_", None)
     if staged is not None:  # the seed's flowchart: per-level fits and current laws
         data["current_laws"] = staged.to_dict(disc.fit_data_.names)

@@ -200,6 +200,13 @@ class Results(Record):
         ``pick`` among those fits, whether the selection ``switched`` to it (the same rule
         selects its final model over ``before``'s; their held-out RMS in
         ``final_heldout``), and a ``note`` (:class:`hystdisc.closing.reselect.Reselection`).
+    reduction : dict or None
+        Present when the selected family's intervals held the values at which it is a
+        smaller family plus effects: the ``family``, the smaller one (``to``), the values
+        (``at``), the ``effects`` it was fitted with, that ``fit``'s ``rms``,
+        ``heldout_rms`` and ``bic``, whether the selection ``switched`` to it, the final
+        models' held-out RMS and BIC (``final_heldout``, ``final_bic``) and a ``note``
+        (:class:`hystdisc.closing.reduction.Reduction`).
     extra : dict
         Keys this version does not know (kept on a round trip).
     """
@@ -250,6 +257,7 @@ class Results(Record):
     encoder: dict[str, Any] | None = None
     outliers: dict[str, Any] | None = None
     reselection: dict[str, Any] | None = None
+    reduction: dict[str, Any] | None = None
     extra: dict[str, Any] = field(default_factory=dict, repr=False)
 
     # ----------------------------------------------------------------- JSON

@@ -55,6 +55,9 @@ def family_table(res: Results) -> str:
         rows.append(f"held-out RMS with {', '.join(rs.get('effects', []))}: " + ", ".join(cells))
         if not rs.get("switched"):
             rows.append(f"selection again: {rs.get('note')}")
+    rd = res.reduction or {}
+    if rd and not rd.get("switched"):  # a switch is the selection note itself
+        rows.append(f"reduction: {rd.get('note')}")
     return "\n".join(rows)
 
 

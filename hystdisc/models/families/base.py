@@ -42,6 +42,12 @@ class Family:
     #: Torque terms whose coefficient is one parameter (term -> parameter name), in the
     #: order of the term form.
     linear_torque: Mapping[str, str] = {}
+    #: Smaller models this family is at values of some of its parameters: each entry is
+    #: ``(values, family, effects)``, where with the parameters at ``values`` the
+    #: family's term form is ``family`` plus the catalogued ``effects`` exactly (LuGre at
+    #: ``sigma_1 = 0`` is Dahl with a current-dependent viscous term); see
+    #: :mod:`hystdisc.closing.reduction`.
+    reductions: tuple[tuple[Mapping[str, float], str, tuple[str, ...]], ...] = ()
 
     def param_names(self) -> list[str]:
         """Names of the damper parameters (rig parameters excluded)."""

@@ -149,6 +149,10 @@ class BoucWenStd(BoucWen):
     _gamma_term = "|theta_dot|*z*|z|^(n-1)"
     gamma_extra_degree = 0
     dahl_exponent = 1.0
+    # n = 1, beta = 0: dz/dt = delta theta_dot - gamma |theta_dot| z with delta = gamma
+    # (z_sat = 1), Dahl's state with rho = delta; c_2 i theta_dot is the current-dependent
+    # viscous effect
+    reductions = (({"n": 1.0, "beta": 0.0}, "dahl", ("current_viscous",)),)
 
     def _scaled_gamma(self, gamma: float, s: float, n: float) -> float:
         # standard form: both shape terms scale as s^(n-1) after z = s*zn:

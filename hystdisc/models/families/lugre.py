@@ -27,6 +27,9 @@ class LuGre(Family):
     current_params = ("sigma_b",)
     current_laws = {"sigma_v": ("sigma_2", "sigma_b")}
     law_terms = {"sigma_v": "theta_dot"}
+    # sigma_1 = 0: dz/dt no longer enters the torque, and sigma_b i theta_dot is the
+    # current-dependent viscous effect (z = w / (sigma_0 a_0), rho = sigma_0 a_0)
+    reductions = (({"sigma_1": 0.0}, "dahl", ("current_viscous",)),)
 
     def to_terms(self, p):
         r = p["sigma_0"] * p["a_0"]
