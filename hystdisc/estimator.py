@@ -96,6 +96,7 @@ from hystdisc.models import FAMILIES, format_equation, get_family
 from hystdisc.registry import experiment_names, family_names, get_experiment
 from hystdisc.results import build_results
 from hystdisc.simulation.admissibility import check_admissible
+from hystdisc.simulation.parallel import limit_threads
 from hystdisc.stats import samples_per_cycle
 
 #: Default upper limit of the threads of one discovery.
@@ -200,8 +201,10 @@ class Discovery(BaseEstimator):
         Forced experiments: how the input is interpolated between its samples (a cubic
         spline for a sampled smooth force; ``zoh`` for a DAC output held between samples).
     n_jobs : int, optional
-        Threads for the independent fits (stage-1 shapes, stage-2 families); default: the
-        usable CPUs, at most :data:`MAX_THREADS`. The results do not depend on it.
+        Threads for the independent fits (stage-1 shapes, stage-2 families) and for the
+        simulations of a state-space model's batch (:mod:`hystdisc.simulation.parallel`);
+        default: the usable CPUs, at most :data:`MAX_THREADS`. The results do not depend
+        on it.
     staged : bool
         After the selection, the seed's flowchart (:mod:`hystdisc.fitting.staged`): the
         selected family fitted at each current level, each current law chosen by leaving
@@ -552,7 +555,8 @@ class Discovery(BaseEstimator):
         """
         say = self._sayer(progress)
         # small dense algebra on tall matrices: extra BLAS threads only add overhead
-        with np.errstate(all="ignore"), threadpool_limits(limits=1):
+        # the simulations of a batch run side by side on up to n_jobs threads
+        with np.errstate(all="ignore"), threadpool_limits(limits=1), limit_threads(self.n_jobs):
             return self._fit(dataset, say)
 
     def _fit(self, dataset: Dataset, say: Callable[[str], None]) -> Discovery:

@@ -146,3 +146,20 @@ def test_a_spencer_fit_with_the_lockstep_jacobian_reaches_the_old_optimum():
         assert abs(new.params[k] - ref.params[k]) < 0.03 * se, k
         assert abs(old.params[k] - ref.params[k]) < 0.03 * se, k
         assert new.stderr[k] == pytest.approx(se, rel=0.005), k
+
+
+def test_a_batch_on_threads_is_the_batch_in_turn_to_the_bit():
+    """``hystdisc.simulation.parallel``: the entries of a state-space batch (here a
+    forward-difference Jacobian's columns) integrated side by side give the same bits."""
+    from hystdisc.simulation.parallel import limit_threads
+
+    data = _data("spencer", SPENCER, "driven", noise=0.01)
+    par = FamilySystemParametrization("spencer", "driven", SPENCER)
+    fitter = OutputErrorFitter(data, par)
+    v = np.concatenate([par.x0, data.nuisance_start(fitter.state)])
+    out = {}
+    for n in (1, 2, 3):
+        with limit_threads(n):
+            out[n] = (fitter.residuals(v), _jacobian(fitter, v, "forward", 1e-10, 1e-13))
+    for n in (2, 3):
+        assert np.array_equal(out[n][0], out[1][0]) and np.array_equal(out[n][1], out[1][1])

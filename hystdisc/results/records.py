@@ -311,7 +311,9 @@ class EffectTrial(Record):
     bic_before, bic_after : float or None
         The same for BIC.
     heldout_rms_before, heldout_rms_after : float or None
-        The same for the held-out RMS (schema 3).
+        The same for the held-out RMS (schema 3); ``heldout_rms_after`` is None also when
+        the refit failed another test (BIC, excess share, significance, admissibility):
+        its held-out error is computed only when it could decide the verdict.
     admissible : bool or None
         The refit is physically admissible (False also for an effect the data want with a
         non-physical sign, which is not refitted).

@@ -35,12 +35,15 @@ import inspect
 import os
 import re
 import sys
+import threading
 import types
 from collections.abc import Callable
 
 import numba
 
 _BUILT: dict[tuple, Callable] = {}
+#: Threads (:mod:`hystdisc.simulation.parallel`) build each kernel once between them.
+_LOCK = threading.Lock()
 
 
 def _source_digest(fn) -> str:
@@ -75,6 +78,14 @@ def specialize(template: Callable, **bound: Callable) -> Callable:
     key = (py, *sorted((k, id(v)) for k, v in bound.items()))
     if key in _BUILT:
         return _BUILT[key]
+    with _LOCK:
+        if key not in _BUILT:
+            _BUILT[key] = _build(py, bound)
+    return _BUILT[key]
+
+
+def _build(py, bound: dict) -> Callable:
+    """The compiled copy of the template ``py`` with ``bound`` (see :func:`specialize`)."""
     names, ident = [], []
     for name, fn in sorted(bound.items()):
         f = getattr(fn, "py_func", fn)
@@ -90,5 +101,4 @@ def specialize(template: Callable, **bound: Callable) -> Callable:
     fn.__module__ = py.__module__
     fn.__doc__ = py.__doc__
     on_disk = os.path.isfile(py.__code__.co_filename)
-    _BUILT[key] = numba.njit(cache=on_disk, nogil=True)(fn)
-    return _BUILT[key]
+    return numba.njit(cache=on_disk, nogil=True)(fn)

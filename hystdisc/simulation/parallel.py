@@ -1,0 +1,81 @@
+"""Independent compiled simulations on threads.
+
+The compiled integrators release the GIL (``nogil``), so the entries of a batch (one
+model on one run: the columns of a forward-difference Jacobian, the runs of a residual)
+can be integrated side by side on threads. Each entry is integrated on its own, exactly
+as in turn, so the results do not depend on the number of threads.
+
+The number of threads is the usable CPUs (at most :data:`MAX_THREADS`), or the limit set
+by :func:`limit_threads` around a piece of work (:class:`hystdisc.Discovery` sets its
+``n_jobs``; ``n_jobs=1`` runs everything in turn).
+
+Examples
+--------
+>>> with limit_threads(1):
+...     map_entries(lambda k: k * k, [1, 2, 3])
+[1, 4, 9]
+>>> with limit_threads(2):
+...     map_entries(lambda k: k * k, [1, 2, 3])
+[1, 4, 9]
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from contextlib import contextmanager
+from typing import Any
+
+import numpy as np
+
+#: At most this many threads per batch.
+MAX_THREADS = 4
+#: A batch with fewer entries than this runs in turn (threads cost more than they save).
+MIN_ENTRIES = 2
+
+_limit: int | None = None
+
+
+def usable_cpus() -> int:
+    """The CPUs this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not on Linux
+        return os.cpu_count() or 1
+
+
+def n_threads() -> int:
+    """Threads a batch may use now (the :func:`limit_threads` limit, else the usable CPUs;
+    at most :data:`MAX_THREADS`)."""
+    n = _limit if _limit is not None else usable_cpus()
+    return max(1, min(n, MAX_THREADS))
+
+
+@contextmanager
+def limit_threads(n: int | None) -> Iterator[None]:
+    """Limit the threads of every batch inside the ``with`` block to ``n`` (None: no
+    limit beyond the usable CPUs)."""
+    global _limit
+    before = _limit
+    _limit = None if n is None else max(1, int(n))
+    try:
+        yield
+    finally:
+        _limit = before
+
+
+def map_entries(fn: Callable[[Any], Any], items: Sequence[Any]) -> list[Any]:
+    """``fn`` over ``items``, in order, on up to :func:`n_threads` threads; each worker
+    keeps the caller's floating-point error state (numpy's is per thread)."""
+    n = min(n_threads(), len(items))
+    if n <= 1 or len(items) < MIN_ENTRIES:
+        return [fn(x) for x in items]
+    state = np.geterr()
+
+    def work(item):
+        with np.errstate(**state):
+            return fn(item)
+
+    with ThreadPoolExecutor(max_workers=n) as pool:
+        return list(pool.map(work, items))
