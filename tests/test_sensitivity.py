@@ -380,3 +380,47 @@ def test_exact_and_forward_fits_land_on_the_same_optimum():
     for k, v in fits["forward"].params.items():
         assert fits["exact"].params[k] == pytest.approx(v, rel=1e-5), k
     assert fits["exact"].rss == pytest.approx(fits["forward"].rss, rel=1e-8)
+
+
+def test_a_batch_cut_into_chunks_on_threads_gives_the_same_bits(monkeypatch):
+    """``hystdisc.simulation.parallel``: a batch of four entries of different lengths cut
+    into chunks integrated side by side equals the batch in one call, outputs, statuses,
+    work and sensitivities alike (a diverging entry included)."""
+    import hystdisc.simulation.batch as batch
+    from hystdisc.simulation.parallel import limit_threads
+
+    tm = _everything()
+    currents = [0.0, 0.3, 0.7, 1.0]
+    coef, b, n = _vectors(tm, currents)
+    coef[2] *= -50.0  # every torque term generating energy: this entry diverges
+    lens = [900, 400, 700, 1000]
+    tt = np.concatenate([np.arange(k) * 1e-3 for k in lens])
+    off = np.concatenate([[0], np.cumsum(lens)])
+    u = 10 * np.sin(7 * tt)
+    start = (np.full(4, 0.3), np.zeros(4), np.zeros(4))
+    J = np.ones(4)
+    act = np.arange(N_DIR)
+    w = np.cos(5 * tt)
+
+    def every():
+        work = [np.zeros(4, dtype=np.int64) for _ in range(4)]
+        return (
+            mech_batch(coef, b, n, J, tt, u, off, *start, work=work[0]),
+            mech_sens_batch(coef, b, n, J, tt, u, off, *start, act, work=work[1]),
+            driven_batch(coef, b, n, tt, 0.2 * np.sin(tt), w, off, np.zeros(4), work=work[2]),
+            driven_sens_batch(
+                coef, b, n, tt, 0.2 * np.sin(tt), w, off, np.zeros(4), act, work=work[3]
+            ),  # fmt: skip
+            work,
+        )
+
+    with limit_threads(1):
+        one = every()
+    monkeypatch.setattr(batch, "CHUNK_SAMPLES", 500)
+    for k in (2, 3):
+        with limit_threads(k):
+            many = every()
+        for a, c in zip(one, many, strict=True):
+            for x, y in zip(a, c, strict=True):
+                np.testing.assert_array_equal(x, y)
+    assert one[0][3].tolist() == [0, 0, 1, 0]  # the diverging entry is flagged in both

@@ -24,6 +24,7 @@ from hystdisc.simulation.kernels import (
     _mech_batch,
     _torque_series,
 )
+from hystdisc.simulation.parallel import chunk_bounds, run_chunks
 from hystdisc.simulation.sensitivity import _driven_sens_batch, _mech_sens_batch
 
 
@@ -63,26 +64,44 @@ def input_slopes(t: np.ndarray, u: np.ndarray, offsets: np.ndarray) -> np.ndarra
     return du
 
 
-def _call_kernel(kernel, model, inputs, outputs, nruns, steps, work) -> np.ndarray:
+#: A batch is split across threads only into chunks of at least this many samples.
+CHUNK_SAMPLES = 20_000
+
+
+def _call_kernel(kernel, model, inputs, outputs, nruns, steps, work, entry=()) -> np.ndarray:
     """Call a batch kernel: ``model`` (``coef, b, n``) and ``inputs``, the step controls
     ``steps`` (``eps, ratio, min_sub, max_sub``), ``outputs``, a fresh status and ``work``
-    (zeros when None); returns the per-run status."""
+    (zeros when None); returns the per-run status.
+
+    ``entry`` names the positions in ``inputs`` of the per-entry arrays; the one of the
+    offsets follows them. A large batch is then cut into contiguous chunks of entries
+    integrated side by side on threads (:func:`~hystdisc.simulation.parallel.run_chunks`):
+    every entry is integrated on its own, into its own samples of the outputs, so the
+    result is the same to the last bit.
+    """
     coef, b, n = model
     eps, ratio, min_sub, max_sub = steps
+    coef = np.ascontiguousarray(coef, dtype=float)
+    b = np.ascontiguousarray(b, dtype=float)
+    n = np.ascontiguousarray(n, dtype=float)
+    max_sub = _per_run(max_sub, nruns)
     status = np.zeros(nruns, dtype=np.int64)
-    kernel(
-        np.ascontiguousarray(coef, dtype=float),
-        np.ascontiguousarray(b, dtype=float),
-        np.asarray(n, dtype=float),
-        *inputs,
-        eps,
-        ratio,
-        min_sub,
-        _per_run(max_sub, nruns),
-        *outputs,
-        status,
-        np.zeros(nruns, dtype=np.int64) if work is None else work,
-    )
+    work = np.zeros(nruns, dtype=np.int64) if work is None else work
+    at = entry[-1] if entry else None
+
+    def call(a: int, z: int) -> None:
+        ins = list(inputs)
+        if at is not None:
+            for i in entry[:-1]:
+                ins[i] = inputs[i][a:z]
+            ins[at] = inputs[at][a : z + 1]
+        kernel(coef[a:z], b[a:z], n[a:z], *ins, eps, ratio, min_sub, max_sub[a:z], *outputs,
+               status[a:z], work[a:z])  # fmt: skip
+
+    if at is None:
+        call(0, nruns)
+    else:
+        run_chunks(call, chunk_bounds(np.asarray(inputs[at]), CHUNK_SAMPLES))
     return status
 
 
@@ -129,6 +148,7 @@ def mech_batch(
         len(offsets) - 1,
         (eps, ratio, min_sub, max_sub),
         work,
+        entry=(0, 5, 6, 7, 4),  # J, theta0, theta_dot0, z0 per entry; offsets
     )
     return th, w, z, status
 
@@ -159,6 +179,7 @@ def driven_batch(
         len(offsets) - 1,
         (eps, ratio, min_sub, max_sub),
         work,
+        entry=(4, 3),  # z0 per entry; offsets
     )
     return tq, z, status
 
@@ -214,6 +235,7 @@ def mech_sens_batch(
         len(offsets) - 1,
         (eps, ratio, min_sub, max_sub),
         work,
+        entry=(0, 5, 6, 7, 4),  # J, theta0, theta_dot0, z0 per entry; offsets
     )
     return th, w, z, sens, status
 
@@ -248,6 +270,7 @@ def driven_sens_batch(
         len(offsets) - 1,
         (eps, ratio, min_sub, max_sub),
         work,
+        entry=(4, 3),  # z0 per entry; offsets
     )
     return tq, z, sens, status
 

@@ -22,6 +22,7 @@ Examples
 from __future__ import annotations
 
 import os
+import threading
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
@@ -63,6 +64,56 @@ def limit_threads(n: int | None) -> Iterator[None]:
         yield
     finally:
         _limit = before
+
+
+_pool: ThreadPoolExecutor | None = None
+_pool_lock = threading.Lock()
+
+
+def run_chunks(fn: Callable[[int, int], None], bounds: Sequence[int]) -> None:
+    """``fn(a, b)`` for each chunk ``[bounds[k], bounds[k + 1])`` side by side on a
+    persistent pool (the chunks of one compiled batch: :mod:`hystdisc.simulation.batch`;
+    many small calls, where starting threads each time would cost more than it saves)."""
+    global _pool
+    pairs = list(zip(bounds[:-1], bounds[1:], strict=True))
+    if len(pairs) <= 1:
+        for a, b in pairs:
+            fn(a, b)
+        return
+    with _pool_lock:
+        if _pool is None:
+            _pool = ThreadPoolExecutor(max_workers=MAX_THREADS, thread_name_prefix="hystdisc")
+    state = np.geterr()
+
+    def work(pair):
+        with np.errstate(**state):
+            fn(*pair)
+
+    for f in [_pool.submit(work, pair) for pair in pairs]:
+        f.result()
+
+
+def chunk_bounds(offsets: np.ndarray, min_samples: int) -> list[int]:
+    """Entry bounds splitting a batch (entries ``e`` own the samples
+    ``offsets[e]:offsets[e + 1]``) into up to :func:`n_threads` contiguous chunks of about
+    equal samples, each at least ``min_samples`` (one chunk: ``[0, entries]``).
+
+    Examples
+    --------
+    >>> with limit_threads(2):
+    ...     chunk_bounds(np.array([0, 10, 20, 30, 40]), 5)
+    [0, 2, 4]
+    >>> with limit_threads(2):
+    ...     chunk_bounds(np.array([0, 10, 20, 30, 40]), 100)
+    [0, 4]
+    """
+    ne = len(offsets) - 1
+    total = int(offsets[-1] - offsets[0])
+    n = min(n_threads(), ne, max(1, total // max(min_samples, 1)))
+    if n <= 1:
+        return [0, ne]
+    cuts = np.searchsorted(offsets, offsets[0] + total * np.arange(1, n) / n)
+    return sorted({0, ne, *(int(c) for c in cuts if 0 < c < ne)})
 
 
 def map_entries(fn: Callable[[Any], Any], items: Sequence[Any]) -> list[Any]:
