@@ -133,6 +133,14 @@ def test_seed_case_dahl_lacks_current_viscous():
     assert f"{entry['rms_before']:.4g} -> {entry['rms_after']:.4g}" in line
     assert "accepted" in line
     assert "Final model: dahl + current_viscous" in text
+    # the held-out error is computed for a refit that passed every other test (the
+    # accepted one), and not for one another test rejected: it could not change its verdict
+    for trial in res.effects_tried:
+        if trial.accepted:
+            assert trial.heldout_rms_after is not None
+        elif trial.bic_after is not None and trial.bic_after > trial.bic_before:
+            assert trial.heldout_rms_after is None
+            assert "held-out" not in (trial.note or "")
     # results.json carries the contract keys and round-trips
     back = Results.from_json(res.to_json())
     summary = json.loads(res.to_json())

@@ -67,6 +67,7 @@ def limit_threads(n: int | None) -> Iterator[None]:
 
 
 _pool: ThreadPoolExecutor | None = None
+_pool_pid = -1  # a forked child has none of its parent's threads: it starts its own pool
 _pool_lock = threading.Lock()
 
 
@@ -74,15 +75,16 @@ def run_chunks(fn: Callable[[int, int], None], bounds: Sequence[int]) -> None:
     """``fn(a, b)`` for each chunk ``[bounds[k], bounds[k + 1])`` side by side on a
     persistent pool (the chunks of one compiled batch: :mod:`hystdisc.simulation.batch`;
     many small calls, where starting threads each time would cost more than it saves)."""
-    global _pool
+    global _pool, _pool_pid
     pairs = list(zip(bounds[:-1], bounds[1:], strict=True))
     if len(pairs) <= 1:
         for a, b in pairs:
             fn(a, b)
         return
     with _pool_lock:
-        if _pool is None:
+        if _pool is None or _pool_pid != os.getpid():
             _pool = ThreadPoolExecutor(max_workers=MAX_THREADS, thread_name_prefix="hystdisc")
+            _pool_pid = os.getpid()
     state = np.geterr()
 
     def work(pair):

@@ -1,0 +1,66 @@
+"""Compiled simulations on threads (``hystdisc.simulation.parallel``).
+
+The bitwise equality of a batch on threads and in turn is tested where the batches live
+(``test_sensitivity.py`` for the term kernels, ``test_system_jacobian.py`` for the
+state-space integrator); here: how a batch is cut, the limit, and a forked child.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+
+import numpy as np
+import pytest
+
+import hystdisc.simulation.batch as batch
+from hystdisc.simulation.batch import integrate_z_flat
+from hystdisc.simulation.parallel import chunk_bounds, limit_threads, n_threads
+
+
+def test_chunks_are_contiguous_balanced_by_samples_and_never_too_small():
+    off = np.concatenate([[0], np.cumsum([100, 100, 100, 700])])
+    with limit_threads(2):
+        # half the samples lie in the last entry: it is a chunk of its own
+        assert chunk_bounds(off, 10) == [0, 3, 4]
+        assert chunk_bounds(off, 600) == [0, 4]  # 1000 samples: one chunk of 600 at most
+    with limit_threads(1):
+        assert chunk_bounds(off, 10) == [0, 4]
+    with limit_threads(8):
+        bounds = chunk_bounds(off, 1)
+        assert bounds[0] == 0 and bounds[-1] == 4 and bounds == sorted(set(bounds))
+        assert len(bounds) - 1 <= min(n_threads(), 4)
+
+
+def test_the_limit_is_restored_after_the_block():
+    before = n_threads()  # the usable CPUs (at most 4)
+    with limit_threads(1):
+        assert n_threads() == 1
+        with limit_threads(3):
+            assert n_threads() == 3  # a limit, not the CPUs: at most MAX_THREADS (4)
+        assert n_threads() == 1
+    assert n_threads() == before
+
+
+def _z_of_batch() -> np.ndarray:
+    t = np.tile(np.linspace(0.0, 2.0, 2001), 4)
+    off = np.arange(5) * 2001
+    return integrate_z_flat(np.array([10.0, -10.0, 0, 0, 0]), 1.0, t, np.cos(3 * t), off)
+
+
+def _child(_: int) -> float:
+    batch.CHUNK_SAMPLES = 1000
+    with limit_threads(2):
+        return float(_z_of_batch().sum())
+
+
+@pytest.mark.skipif(
+    "fork" not in multiprocessing.get_all_start_methods(), reason="no fork on this platform"
+)
+def test_a_forked_child_runs_chunked_batches_on_a_pool_of_its_own(monkeypatch):
+    # the parent's pool exists (its threads are not copied into a forked child)
+    monkeypatch.setattr(batch, "CHUNK_SAMPLES", 1000)
+    with limit_threads(2):
+        want = float(_z_of_batch().sum())
+    with multiprocessing.get_context("fork").Pool(1) as pool:
+        got = pool.apply_async(_child, (0,)).get(timeout=120)
+    assert got == want
