@@ -37,7 +37,6 @@ True
 
 from __future__ import annotations
 
-import os
 import sys
 import threading
 import time
@@ -50,8 +49,9 @@ from sklearn.base import BaseEstimator
 from threadpoolctl import threadpool_limits
 
 from hystdisc.closing import LoopResult, close_loop
-from hystdisc.closing.reduction import Reduction, reduce_family
-from hystdisc.closing.reselect import Reselection, reselect, term_effects
+from hystdisc.closing.again import compare_again
+from hystdisc.closing.reduction import Reduction
+from hystdisc.closing.reselect import Reselection
 from hystdisc.closing.residual import NOISE_RATIO
 from hystdisc.data import (
     Dataset,
@@ -96,7 +96,7 @@ from hystdisc.models import FAMILIES, format_equation, get_family
 from hystdisc.registry import experiment_names, family_names, get_experiment
 from hystdisc.results import build_results
 from hystdisc.simulation.admissibility import check_admissible
-from hystdisc.simulation.parallel import limit_threads
+from hystdisc.simulation.parallel import limit_threads, usable_cpus
 from hystdisc.stats import samples_per_cycle
 
 #: Default upper limit of the threads of one discovery.
@@ -109,13 +109,7 @@ EQUAL_FIT_BIC = 6.0
 
 
 def _n_threads(n_jobs: int | None) -> int:
-    if n_jobs is not None:
-        return max(1, int(n_jobs))
-    try:
-        cpus = len(os.sched_getaffinity(0))
-    except AttributeError:  # pragma: no cover - not on Linux
-        cpus = os.cpu_count() or 1
-    return max(1, min(cpus, MAX_THREADS))
+    return max(1, int(n_jobs)) if n_jobs is not None else max(1, min(usable_cpus(), MAX_THREADS))
 
 
 def _stderr_printer() -> Callable[[str], None]:
@@ -757,39 +751,24 @@ class Discovery(BaseEstimator):
             self.loop_ = self._close_loop(selected, eq, fd, say)
         self.reselection_: Reselection | None = None
         self.reduction_: Reduction | None = None
-        carried = term_effects(self.loop_.effects) if self.loop_ is not None else []
-        staged_changed = self.staged_ is not None and self.staged_.changed
-        # the staged laws belong to the selected family alone: no other family replaces it
-        compare = self.model is None and len(fams) > 1 and not staged_changed
-        table = {n: self.family_fits_[n] for n in fams}
-        close = lambda fit: self._close_loop(fit, eq, fd, say)  # noqa: E731
-        if compare and carried and self.family_ in fams:
-            res = reselect(table, self.family_, self.loop_, carried, fd, eq, self.envelope_,
-                           close, self._stage1_shape, self.max_nfev, self.heldout,
-                           self._map, say)  # fmt: skip
-            self.reselection_ = res
-            if res.switched:  # the outliers stay as the first selection confirmed them
-                self.family_, self.selection_note_ = res.pick, res.note
-                self.loop_ = res.loop
-                selected = self.family_fits_[res.pick]
-        if compare and self.loop_ is not None and self.family_ in fams:
-            red = reduce_family(self.loop_, self.family_, table, fd, eq, self.envelope_, close,
-                                self._stage1_shape, self.max_nfev, self.heldout, say)  # fmt: skip
-            self.reduction_ = red
-            if red is not None and red.switched:
-                self.family_, self.selection_note_ = red.to, red.note
-                self.loop_ = red.loop
-                selected = self.family_fits_[red.to]
-        # equal fits: among the fits of the comparison that made the selection
         bics = {n: f.bic for n, f in self.family_fits_.items()}
-        if self.reduction_ is not None and self.reduction_.switched:
-            bics = dict(self.reduction_.final_bic)
-        elif self.reselection_ is not None and self.reselection_.switched:
-            bics = {n: f.bic for n, f in self.reselection_.fits.items()}
+        # the staged laws belong to the selected family alone: no other family replaces it
+        staged_changed = self.staged_ is not None and self.staged_.changed
+        if self.model is None and len(fams) > 1 and not staged_changed and self.loop_ is not None:
+            close = lambda fit: self._close_loop(fit, eq, fd, say)  # noqa: E731
+            table = {n: self.family_fits_[n] for n in fams}
+            again = compare_again(table, self.family_, self.loop_, fd, eq, self.envelope_, close,
+                                  self._stage1_shape, self.max_nfev, self.heldout, self._map,
+                                  say)  # fmt: skip
+            self.reselection_, self.reduction_ = again.reselection, again.reduction
+            if again.bics is not None:  # the outliers stay as the first selection confirmed them
+                self.family_, self.selection_note_ = again.family, again.note
+                self.loop_, bics = again.loop, again.bics
+                selected = self.family_fits_[self.family_]
+        # equal fits: among the fits of the comparison that made the selection
+        ref = bics[self.family_]
         self.equal_fits_ = sorted(
-            n
-            for n, b in bics.items()
-            if b - bics[self.family_] < EQUAL_FIT_BIC and n != self.family_
+            n for n, b in bics.items() if b - ref < EQUAL_FIT_BIC and n != self.family_
         )
         self.final_fit_ = selected if self.loop_ is None else self.loop_.fit
         self.effects_ = [] if self.loop_ is None else list(self.loop_.effects)

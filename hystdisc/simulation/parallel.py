@@ -114,7 +114,10 @@ def chunk_bounds(offsets: np.ndarray, min_samples: int) -> list[int]:
     n = min(n_threads(), ne, max(1, total // max(min_samples, 1)))
     if n <= 1:
         return [0, ne]
-    cuts = np.searchsorted(offsets, offsets[0] + total * np.arange(1, n) / n)
+    # each cut at the entry boundary nearest its share of the samples
+    target = offsets[0] + total * np.arange(1, n) / n
+    hi = np.clip(np.searchsorted(offsets, target), 1, ne)
+    cuts = np.where(target - offsets[hi - 1] <= offsets[hi] - target, hi - 1, hi)
     return sorted({0, ne, *(int(c) for c in cuts if 0 < c < ne)})
 
 
