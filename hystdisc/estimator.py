@@ -51,7 +51,7 @@ from threadpoolctl import threadpool_limits
 from hystdisc.closing import LoopResult, close_loop
 from hystdisc.closing.again import compare_again
 from hystdisc.closing.reduction import Reduction
-from hystdisc.closing.reselect import Reselection
+from hystdisc.closing.reselect import Context, Reselection
 from hystdisc.closing.residual import NOISE_RATIO
 from hystdisc.data import (
     Dataset,
@@ -756,10 +756,10 @@ class Discovery(BaseEstimator):
         staged_changed = self.staged_ is not None and self.staged_.changed
         if self.model is None and len(fams) > 1 and not staged_changed and self.loop_ is not None:
             close = lambda fit: self._close_loop(fit, eq, fd, say)  # noqa: E731
-            table = {n: self.family_fits_[n] for n in fams}
-            again = compare_again(table, self.family_, self.loop_, fd, eq, self.envelope_, close,
-                                  self._stage1_shape, self.max_nfev, self.heldout, self._map,
-                                  say)  # fmt: skip
+            ctx = Context(fd, eq, self.envelope_, close, self._stage1_shape, self.max_nfev,
+                          self.heldout, self._map, say)  # fmt: skip
+            again = compare_again({n: self.family_fits_[n] for n in fams}, self.family_,
+                                  self.loop_, ctx)  # fmt: skip
             self.reselection_, self.reduction_ = again.reselection, again.reduction
             if again.bics is not None:  # the outliers stay as the first selection confirmed them
                 self.family_, self.selection_note_ = again.family, again.note

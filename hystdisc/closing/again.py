@@ -9,13 +9,13 @@ that made that choice (the basis of the "fit equally well" list).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
 from hystdisc.closing.reduction import Reduction, reduce_family
-from hystdisc.closing.reselect import Reselection, reselect, term_effects
-from hystdisc.fitting import FitData, OEFit
+from hystdisc.closing.reselect import Context, Reselection, reselect, term_effects
+from hystdisc.fitting import OEFit
 
 
 @dataclass
@@ -46,20 +46,7 @@ class Again:
     bics: dict[str, float] | None = None
 
 
-def compare_again(
-    table: Mapping[str, OEFit],
-    family: str,
-    loop: Any,
-    data: FitData,
-    eq: Any,
-    envelope: Any,
-    close: Callable[[OEFit], Any],
-    shapes: Callable[[OEFit], Any],
-    max_nfev: int = 60,
-    heldout: bool = True,
-    mapper: Callable | None = None,
-    say: Callable[[str], None] | None = None,
-) -> Again:
+def compare_again(table: Mapping[str, OEFit], family: str, loop: Any, ctx: Context) -> Again:
     """Reselect with the loop's term effects, then reduce (see the module docstring).
 
     Parameters
@@ -70,8 +57,8 @@ def compare_again(
         The family selected from the table.
     loop : LoopResult
         The loop closed on ``family``.
-    data, eq, envelope, close, shapes, max_nfev, heldout, mapper, say
-        As for :func:`~hystdisc.closing.reselect.reselect`.
+    ctx : Context
+        The data and the callbacks (:class:`~hystdisc.closing.reselect.Context`).
 
     Returns
     -------
@@ -80,14 +67,12 @@ def compare_again(
     out = Again(family, None, loop)
     carried = term_effects(loop.effects)
     if carried:
-        res = reselect(table, family, loop, carried, data, eq, envelope, close, shapes,
-                       max_nfev, heldout, mapper, say)  # fmt: skip
+        res = reselect(table, family, loop, carried, ctx)
         out.reselection = res
         if res.switched:
             out.family, out.note, out.loop = res.pick, res.note, res.loop
             out.bics = {n: f.bic for n, f in res.fits.items()}
-    red = reduce_family(out.loop, out.family, table, data, eq, envelope, close, shapes,
-                        max_nfev, heldout, say)  # fmt: skip
+    red = reduce_family(out.loop, out.family, table, ctx)
     out.reduction = red
     if red is not None and red.switched:
         out.family, out.note, out.loop = red.to, red.note, red.loop

@@ -21,17 +21,15 @@ picks it there too. A parameter whose interval excludes the value (a LuGre dampe
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from hystdisc.closing.reselect import refit_families, term_effects, versus
-from hystdisc.fitting import FitData, OEFit
-from hystdisc.fitting.selection import select_family
+from hystdisc.closing.reselect import Context, judge, refit_families, term_effects, versus
+from hystdisc.fitting import OEFit
 from hystdisc.models import EFFECTS
-from hystdisc.simulation.admissibility import check_admissible
 
 
 def reduction_held(fit: OEFit) -> tuple[dict[str, float], str, tuple[str, ...]] | None:
@@ -127,17 +125,7 @@ class Reduction:
 
 
 def reduce_family(
-    loop: Any,
-    before: str,
-    family_fits: Mapping[str, OEFit],
-    data: FitData,
-    eq: Any,
-    envelope: Any,
-    close: Callable[[OEFit], Any],
-    shapes: Callable[[OEFit], Any],
-    max_nfev: int = 60,
-    heldout: bool = True,
-    say: Callable[[str], None] | None = None,
+    loop: Any, before: str, family_fits: Mapping[str, OEFit], ctx: Context
 ) -> Reduction | None:
     """Reduce the selected family ``before`` to a smaller family plus effects, when the
     intervals of its final fit hold a reduction's values (see the module docstring).
@@ -150,22 +138,8 @@ def reduce_family(
         The selected family.
     family_fits : mapping of str to OEFit
         The family table's fits (term families), without effects.
-    data : FitData
-        The output-error data.
-    eq : EqData
-        The equation-error data (stage 1's start of the smaller family plus effects).
-    envelope : Envelope
-        The training envelope (admissibility).
-    close : callable
-        Called with a family's fit, closes the loop on it and returns the ``LoopResult``.
-    shapes : callable
-        Called with a fit, returns its family's stage-1 shape constants.
-    max_nfev : int
-        Simulation budget of the refit.
-    heldout : bool
-        Judge the refit on held-out data.
-    say : callable, optional
-        Progress messages.
+    ctx : Context
+        The data and the callbacks (:class:`~hystdisc.closing.reselect.Context`).
 
     Returns
     -------
@@ -173,7 +147,7 @@ def reduce_family(
         None when no reduction's values lie inside the final fit's intervals, or the
         smaller family is not in the table.
     """
-    say = say or (lambda msg: None)
+    say = ctx.say
     final = loop.fit
     held = reduction_held(final)
     if held is None or held[1] not in family_fits:
@@ -183,12 +157,12 @@ def reduce_family(
     where = ", ".join(f"{k} = {v:g}" for k, v in at.items())
     say(f"reduction: {before} at {where} is {to} with {', '.join(own)}; fitting it")
     values = _effect_values(final, effects)
-    fit = refit_families({to: family_fits[to]}, effects, data, eq, values, shapes, max_nfev,
-                         heldout)[to]  # fmt: skip
+    fit = refit_families({to: family_fits[to]}, effects, ctx.data, ctx.eq, values, ctx.shapes,
+                         ctx.max_nfev, ctx.heldout)[to]  # fmt: skip
     red = Reduction(before, to, at, effects, fit)
     red.final_heldout[before], red.final_bic[before] = final.heldout_rms, final.bic
     names = ", ".join(effects)
-    winner, adm = _judge({before: final, to: fit}, envelope)
+    winner, adm = judge({before: final, to: fit}, ctx.envelope)
     if winner != to:
         red.note = (
             f"{before}'s intervals hold {where}, where it is {to} with {', '.join(own)}; "
@@ -196,10 +170,10 @@ def reduce_family(
         )
         return red
     say(f"reduction: {to} with {names} is selected; closing the loop from it")
-    red.loop = close(family_fits[to])
+    red.loop = ctx.close(family_fits[to])
     new = red.loop.fit
     red.final_heldout[to], red.final_bic[to] = new.heldout_rms, new.bic
-    winner, adm = _judge({before: final, to: new}, envelope)
+    winner, adm = judge({before: final, to: new}, ctx.envelope)
     if winner != to or not adm[to].ok:
         why = "" if adm[to].ok else f", not physical: {adm[to].violations[0]}"
         red.note = (
@@ -231,12 +205,3 @@ def _effect_values(final: OEFit, effects: list[str]) -> dict[str, float]:
             elif len(eff.params) == 1 and len(eff.terms) == 1 and eff.terms[0] in torque:
                 out[p.name] = float(torque[eff.terms[0]])
     return {k: v for k, v in out.items() if np.isfinite(v)}
-
-
-def _judge(fits: Mapping[str, OEFit], envelope: Any) -> tuple[str, dict[str, Any]]:
-    """The family table's rule on ``fits``, with each one's admissibility."""
-    adm = {
-        n: check_admissible(f.model if f.is_system else f.term_part, envelope)
-        for n, f in fits.items()
-    }
-    return select_family(fits, adm)[0], adm

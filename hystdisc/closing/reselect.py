@@ -47,6 +47,50 @@ def term_effects(effects: Sequence[str]) -> list[str]:
     return [e for e in effects if not EFFECTS[e].structural]
 
 
+def _silent(msg: str) -> None:
+    """Drop a progress message (the default of :attr:`Context.say`)."""
+
+
+@dataclass(frozen=True)
+class Context:
+    """What comparing the families again after the loop needs (the estimator's data and
+    its callbacks), shared by :func:`reselect`,
+    :func:`~hystdisc.closing.reduction.reduce_family` and
+    :func:`~hystdisc.closing.again.compare_again`.
+
+    Attributes
+    ----------
+    data : FitData
+        The output-error data.
+    eq : EqData
+        The equation-error data (stage 1's start of a family plus effects).
+    envelope : Envelope
+        The training envelope (admissibility).
+    close : callable
+        Called with a family's fit, closes the loop on it and returns the ``LoopResult``.
+    shapes : callable
+        Called with a fit, returns its family's stage-1 shape constants.
+    max_nfev : int
+        Simulation budget of each refit.
+    heldout : bool
+        Judge the refits on held-out data.
+    mapper : callable or None
+        ``mapper(fn, items) -> list`` for independent refits (default: in turn).
+    say : callable
+        Progress messages.
+    """
+
+    data: FitData
+    eq: Any
+    envelope: Any
+    close: Callable[[OEFit], Any]
+    shapes: Callable[[OEFit], Any]
+    max_nfev: int = 60
+    heldout: bool = True
+    mapper: Callable | None = None
+    say: Callable[[str], None] = _silent
+
+
 def refit_families(
     family_fits: Mapping[str, OEFit],
     effects: Sequence[str],
@@ -180,21 +224,13 @@ def reselect(
     before: str,
     loop: Any,
     effects: Sequence[str],
-    data: FitData,
-    eq: Any,
-    envelope: Any,
-    close: Callable[[OEFit], Any],
-    shapes: Callable[[OEFit], Any],
-    max_nfev: int = 60,
-    heldout: bool = True,
-    mapper: Callable | None = None,
-    say: Callable[[str], None] | None = None,
+    ctx: Context,
 ) -> Reselection:
     """Compare the families again with the ``effects`` the loop accepted on ``before``.
 
     Every family is refitted with them (:func:`refit_families`) and the usual rule picks
     one (:func:`~hystdisc.fitting.selection.select_family`). When that is another family,
-    the loop is closed again from its fit (``close``), and the switch is made
+    the loop is closed again from its fit (``ctx.close``), and the switch is made
     (``switched``) only when the same rule, applied to the new final model and ``loop``'s,
     selects the new one and it is admissible.
 
@@ -208,35 +244,20 @@ def reselect(
         The loop closed on ``before`` (its final fit carries the effects' values).
     effects : sequence of str
         The accepted effects with a term form (:func:`term_effects`).
-    data : FitData
-        The output-error data.
-    eq : EqData
-        The equation-error data.
-    envelope : Envelope
-        The training envelope (admissibility).
-    close : callable
-        Called with a family's fit, closes the loop on it and returns the ``LoopResult``.
-    shapes : callable
-        Called with a fit, returns its family's stage-1 shape constants.
-    max_nfev : int
-        Simulation budget of each refit.
-    heldout : bool
-        Judge the refits on held-out data.
-    mapper : callable, optional
-        ``mapper(fn, items) -> list`` for the refits.
-    say : callable, optional
-        Progress messages.
+    ctx : Context
+        The data and the callbacks.
 
     Returns
     -------
     Reselection
     """
-    say = say or (lambda msg: None)
+    say, envelope = ctx.say, ctx.envelope
     final = loop.fit
     values = {p.name: final.params[p.name] for e in effects for p in EFFECTS[e].params}
     names = ", ".join(effects)
     say(f"selection again: every family with {names}")
-    fits = refit_families(family_fits, effects, data, eq, values, shapes, max_nfev, heldout, mapper)
+    fits = refit_families(family_fits, effects, ctx.data, ctx.eq, values, ctx.shapes,
+                          ctx.max_nfev, ctx.heldout, ctx.mapper)  # fmt: skip
     adm = {n: check_admissible(f.term_part, envelope) for n, f in fits.items()}
     pick, _ = select_family(fits, adm)
     res = Reselection(list(effects), fits, {n: a.ok for n, a in adm.items()}, before, pick)
@@ -245,16 +266,11 @@ def reselect(
         res.note = f"with {names} in every family, {before} is still selected"
         return res
     say(f"selection again: {pick} is selected with {names}; closing the loop from it")
-    res.loop = close(family_fits[pick])
+    res.loop = ctx.close(family_fits[pick])
     new = res.loop.fit
     res.final_heldout[pick] = new.heldout_rms
     # the two final models, judged by the same rule
-    finals = {before: final, pick: new}
-    fadm = {
-        n: check_admissible(f.model if f.is_system else f.term_part, envelope)
-        for n, f in finals.items()
-    }
-    winner, _ = select_family(finals, fadm)
+    winner, fadm = judge({before: final, pick: new}, envelope)
     table = versus(fits[pick], fits[before])
     if winner != pick or not fadm[pick].ok:
         why = "" if fadm[pick].ok else f", not physical: {fadm[pick].violations[0]}"
@@ -270,6 +286,17 @@ def reselect(
         f"({versus(new, final)}): {pick} selected"
     )
     return res
+
+
+def judge(fits: Mapping[str, OEFit], envelope: Any) -> tuple[str, dict[str, Any]]:
+    """The family table's rule (:func:`~hystdisc.fitting.selection.select_family`) on
+    ``fits`` (final models: a state-space one judged as a system), with each one's
+    admissibility."""
+    adm = {
+        n: check_admissible(f.model if f.is_system else f.term_part, envelope)
+        for n, f in fits.items()
+    }
+    return select_family(fits, adm)[0], adm
 
 
 def versus(a: OEFit, b: OEFit) -> str:
