@@ -31,13 +31,18 @@ def _stage1_shape(disc):
 
 
 @pytest.fixture(scope="module")
-def base(tmp_path_factory):
+def offset_csv(tmp_path_factory):
     out = tmp_path_factory.mktemp("reselect") / "off.csv"
     argv = ["simulate", "--model", "bouc-wen", "--set", TRUTH]
     argv += ["--effect", f"offset:theta_off={THETA_OFF}", "--currents", "0,0.25,0.5,0.75,1"]
     argv += ["--duration", "3", "--noise", str(NOISE), "--seed", "5", "-o", str(out), "--quiet"]
     assert main(argv) == 0
-    return Discovery(close_loop=False).fit(load(out))
+    return out
+
+
+@pytest.fixture(scope="module")
+def base(offset_csv):
+    return Discovery(close_loop=False).fit(load(offset_csv))
 
 
 def test_only_term_effects_are_carried_to_every_family():
@@ -129,3 +134,26 @@ def test_the_console_table_shows_the_families_with_the_rigs_effect():
     lines = res.family_table().splitlines()
     assert "held-out RMS with offset: dahl 0.002, bouc-wen 0.001 (not physical)" in lines
     assert "selection again: with offset in every family, dahl is still selected" in lines
+
+
+def test_the_whole_estimator_switches_to_the_true_form_with_the_damper_effect(tmp_path):
+    """End to end (``closing/again.py``): the table picks the seed form, the loop finds
+    the quadratic damping on it, the forms compared again with it pick the standard form,
+    the loop is closed again from it, and the rule keeps the switch on the final models."""
+    out = tmp_path / "qd.csv"
+    argv = ["simulate", "--model", "bouc-wen-std", "--set", STD_TRUTH]
+    argv += ["--effect", f"quadratic_damping:c_q={C_Q}", "--currents", "0,0.25,0.5,0.75,1"]
+    argv += ["--duration", "3", "--noise", str(NOISE), "--seed", "23", "-o", str(out), "--quiet"]
+    assert main(argv) == 0
+    disc = Discovery(families=["bouc-wen", "bouc-wen-std"]).fit(load(out))
+    res = disc.reselection_
+    assert res.before == "bouc-wen" and res.effects == ["quadratic_damping"] and res.switched
+    assert disc.family_ == "bouc-wen-std" and disc.effects_ == ["quadratic_damping"]
+    assert disc.results_.reselection["switched"] is True and disc.reduction_ is None
+    # the equal fits are read in the comparison that made the switch (both forms with the
+    # effect), not in the table without it
+    bics = {n: f.bic for n, f in res.fits.items()}
+    want = [n for n in bics if n != disc.family_ and bics[n] - bics[disc.family_] < 6.0]
+    assert disc.equal_fits_ == want
+    lo, hi = disc.final_fit_.ci95["c_q"]
+    assert lo < C_Q < hi and disc.final_fit_.rms < 1.03 * disc.noise_std_
