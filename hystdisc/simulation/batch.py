@@ -24,7 +24,7 @@ from hystdisc.simulation.kernels import (
     _mech_batch,
     _torque_series,
 )
-from hystdisc.simulation.parallel import chunk_bounds, run_chunks
+from hystdisc.simulation.parallel import chunk_bounds, map_entries
 from hystdisc.simulation.sensitivity import _driven_sens_batch, _mech_sens_batch
 
 
@@ -75,7 +75,7 @@ def _call_kernel(kernel, model, inputs, outputs, nruns, steps, work, entry=()) -
 
     ``entry`` names the positions in ``inputs`` of the per-entry arrays; the one of the
     offsets follows them. A large batch is then cut into contiguous chunks of entries
-    integrated side by side on threads (:func:`~hystdisc.simulation.parallel.run_chunks`):
+    integrated side by side on threads (:func:`~hystdisc.simulation.parallel.map_entries`):
     every entry is integrated on its own, into its own samples of the outputs, so the
     result is the same to the last bit.
     """
@@ -101,7 +101,8 @@ def _call_kernel(kernel, model, inputs, outputs, nruns, steps, work, entry=()) -
     if at is None:
         call(0, nruns)
     else:
-        run_chunks(call, chunk_bounds(np.asarray(inputs[at]), CHUNK_SAMPLES))
+        bounds = chunk_bounds(np.asarray(inputs[at]), CHUNK_SAMPLES)
+        map_entries(lambda ab: call(*ab), list(zip(bounds[:-1], bounds[1:], strict=True)))
     return status
 
 

@@ -32,7 +32,7 @@ import numpy as np
 
 #: At most this many threads per batch.
 MAX_THREADS = 4
-#: A batch with fewer entries than this runs in turn (threads cost more than they save).
+#: A batch with fewer entries than this runs in turn.
 MIN_ENTRIES = 2
 
 _limit: int | None = None
@@ -71,28 +71,15 @@ _pool_pid = -1  # a forked child has none of its parent's threads: it starts its
 _pool_lock = threading.Lock()
 
 
-def run_chunks(fn: Callable[[int, int], None], bounds: Sequence[int]) -> None:
-    """``fn(a, b)`` for each chunk ``[bounds[k], bounds[k + 1])`` side by side on a
-    persistent pool (the chunks of one compiled batch: :mod:`hystdisc.simulation.batch`;
-    many small calls, where starting threads each time would cost more than it saves)."""
+def _shared_pool() -> ThreadPoolExecutor:
+    """The process's pool (kept: a fit makes thousands of small batches, and starting
+    threads for each would cost more than it saves)."""
     global _pool, _pool_pid
-    pairs = list(zip(bounds[:-1], bounds[1:], strict=True))
-    if len(pairs) <= 1:
-        for a, b in pairs:
-            fn(a, b)
-        return
     with _pool_lock:
         if _pool is None or _pool_pid != os.getpid():
             _pool = ThreadPoolExecutor(max_workers=MAX_THREADS, thread_name_prefix="hystdisc")
             _pool_pid = os.getpid()
-    state = np.geterr()
-
-    def work(pair):
-        with np.errstate(**state):
-            fn(*pair)
-
-    for f in [_pool.submit(work, pair) for pair in pairs]:
-        f.result()
+        return _pool
 
 
 def chunk_bounds(offsets: np.ndarray, min_samples: int) -> list[int]:
@@ -122,16 +109,27 @@ def chunk_bounds(offsets: np.ndarray, min_samples: int) -> list[int]:
 
 
 def map_entries(fn: Callable[[Any], Any], items: Sequence[Any]) -> list[Any]:
-    """``fn`` over ``items``, in order, on up to :func:`n_threads` threads; each worker
-    keeps the caller's floating-point error state (numpy's is per thread)."""
+    """``fn`` over ``items``, in order, on up to :func:`n_threads` threads of the shared
+    pool, each taking the next item when it is free (entries of unequal cost); each keeps
+    the caller's floating-point error state (numpy's is per thread). ``fn`` must not wait
+    on this pool itself."""
     n = min(n_threads(), len(items))
     if n <= 1 or len(items) < MIN_ENTRIES:
         return [fn(x) for x in items]
+    out: list[Any] = [None] * len(items)
+    order = iter(range(len(items)))
+    lock = threading.Lock()
     state = np.geterr()
 
-    def work(item):
+    def lane() -> None:
         with np.errstate(**state):
-            return fn(item)
+            while True:
+                with lock:
+                    k = next(order, None)
+                if k is None:
+                    return
+                out[k] = fn(items[k])
 
-    with ThreadPoolExecutor(max_workers=n) as pool:
-        return list(pool.map(work, items))
+    for f in [_shared_pool().submit(lane) for _ in range(n)]:
+        f.result()
+    return out
