@@ -25,11 +25,15 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-import numpy as np
-
-from hystdisc.closing.reselect import Context, judge, refit_families, term_effects, versus
+from hystdisc.closing.reselect import (
+    Context,
+    effect_values,
+    judge,
+    refit_families,
+    term_effects,
+    versus,
+)
 from hystdisc.fitting import OEFit
-from hystdisc.models import EFFECTS
 
 
 def reduction_held(fit: OEFit) -> tuple[dict[str, float], str, tuple[str, ...]] | None:
@@ -156,7 +160,7 @@ def reduce_family(
     effects = list(own) + [e for e in term_effects(loop.effects) if e not in own]
     where = ", ".join(f"{k} = {v:g}" for k, v in at.items())
     say(f"reduction: {before} at {where} is {to} with {', '.join(own)}; fitting it")
-    values = _effect_values(final, effects)
+    values = effect_values(final, effects)
     fit = refit_families({to: family_fits[to]}, effects, ctx.data, ctx.eq, values, ctx.shapes,
                          ctx.max_nfev, ctx.heldout)[to]  # fmt: skip
     red = Reduction(before, to, at, effects, fit)
@@ -189,19 +193,3 @@ def reduce_family(
         f"({versus(new, final)}): {to} selected"
     )
     return red
-
-
-def _effect_values(final: OEFit, effects: list[str]) -> dict[str, float]:
-    """Starting values of the effects' parameters: the final fit's own (an effect the loop
-    accepted), or the final model's coefficient of a one-term effect's term (the
-    reduction's effects are terms the larger family carries natively)."""
-    torque = final.term_part.torque
-    out = {}
-    for e in effects:
-        eff = EFFECTS[e]
-        for p in eff.params:
-            if p.name in final.params:
-                out[p.name] = float(final.params[p.name])
-            elif len(eff.params) == 1 and len(eff.terms) == 1 and eff.terms[0] in torque:
-                out[p.name] = float(torque[eff.terms[0]])
-    return {k: v for k, v in out.items() if np.isfinite(v)}

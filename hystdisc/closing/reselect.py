@@ -27,6 +27,8 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+
 from hystdisc.closing.refit import candidate_effects, refit_with, stage1_start
 from hystdisc.closing.residual import NOISE_RATIO
 from hystdisc.fitting import FitData, OEFit
@@ -253,7 +255,7 @@ def reselect(
     """
     say, envelope = ctx.say, ctx.envelope
     final = loop.fit
-    values = {p.name: final.params[p.name] for e in effects for p in EFFECTS[e].params}
+    values = effect_values(final, effects)
     names = ", ".join(effects)
     say(f"selection again: every family with {names}")
     fits = refit_families(family_fits, effects, ctx.data, ctx.eq, values, ctx.shapes,
@@ -286,6 +288,23 @@ def reselect(
         f"({versus(new, final)}): {pick} selected"
     )
     return res
+
+
+def effect_values(final: OEFit, effects: Sequence[str]) -> dict[str, float]:
+    """Starting values of the effects' parameters: the final fit's own (an effect the loop
+    accepted), or the final model's coefficient of a one-term effect's term (an effect
+    whose term the family carries natively: :mod:`hystdisc.closing.reduction`); the
+    finite ones."""
+    torque = final.term_part.torque
+    out = {}
+    for e in effects:
+        eff = EFFECTS[e]
+        for p in eff.params:
+            if p.name in final.params:
+                out[p.name] = float(final.params[p.name])
+            elif len(eff.params) == 1 and len(eff.terms) == 1 and eff.terms[0] in torque:
+                out[p.name] = float(torque[eff.terms[0]])
+    return {k: v for k, v in out.items() if np.isfinite(v)}
 
 
 def judge(fits: Mapping[str, OEFit], envelope: Any) -> tuple[str, dict[str, Any]]:

@@ -68,13 +68,15 @@ def input_slopes(t: np.ndarray, u: np.ndarray, offsets: np.ndarray) -> np.ndarra
 CHUNK_SAMPLES = 20_000
 
 
-def _call_kernel(kernel, model, inputs, outputs, nruns, steps, work, entry=()) -> np.ndarray:
+def _call_kernel(
+    kernel, model, inputs, outputs, nruns, steps, work, per_entry=(), offsets_at=None
+) -> np.ndarray:
     """Call a batch kernel: ``model`` (``coef, b, n``) and ``inputs``, the step controls
     ``steps`` (``eps, ratio, min_sub, max_sub``), ``outputs``, a fresh status and ``work``
     (zeros when None); returns the per-run status.
 
-    ``entry`` names the positions in ``inputs`` of the per-entry arrays; the one of the
-    offsets follows them. A large batch is then cut into contiguous chunks of entries
+    ``per_entry`` names the positions in ``inputs`` of the per-entry arrays and
+    ``offsets_at`` the position of the entries' sample offsets. A large batch is then cut into contiguous chunks of entries
     integrated side by side on threads (:func:`~hystdisc.simulation.parallel.map_entries`):
     every entry is integrated on its own, into its own samples of the outputs, so the
     result is the same to the last bit.
@@ -87,12 +89,12 @@ def _call_kernel(kernel, model, inputs, outputs, nruns, steps, work, entry=()) -
     max_sub = _per_run(max_sub, nruns)
     status = np.zeros(nruns, dtype=np.int64)
     work = np.zeros(nruns, dtype=np.int64) if work is None else work
-    at = entry[-1] if entry else None
+    at = offsets_at
 
     def call(a: int, z: int) -> None:
         ins = list(inputs)
         if at is not None:
-            for i in entry[:-1]:
+            for i in per_entry:
                 ins[i] = inputs[i][a:z]
             ins[at] = inputs[at][a : z + 1]
         kernel(coef[a:z], b[a:z], n[a:z], *ins, eps, ratio, min_sub, max_sub[a:z], *outputs,
@@ -149,7 +151,8 @@ def mech_batch(
         len(offsets) - 1,
         (eps, ratio, min_sub, max_sub),
         work,
-        entry=(0, 5, 6, 7, 4),  # J, theta0, theta_dot0, z0 per entry; offsets
+        per_entry=(0, 5, 6, 7),  # J, theta0, theta_dot0, z0
+        offsets_at=4,
     )
     return th, w, z, status
 
@@ -180,7 +183,8 @@ def driven_batch(
         len(offsets) - 1,
         (eps, ratio, min_sub, max_sub),
         work,
-        entry=(4, 3),  # z0 per entry; offsets
+        per_entry=(4,),  # z0
+        offsets_at=3,
     )
     return tq, z, status
 
@@ -236,7 +240,8 @@ def mech_sens_batch(
         len(offsets) - 1,
         (eps, ratio, min_sub, max_sub),
         work,
-        entry=(0, 5, 6, 7, 4),  # J, theta0, theta_dot0, z0 per entry; offsets
+        per_entry=(0, 5, 6, 7),  # J, theta0, theta_dot0, z0
+        offsets_at=4,
     )
     return th, w, z, sens, status
 
@@ -271,7 +276,8 @@ def driven_sens_batch(
         len(offsets) - 1,
         (eps, ratio, min_sub, max_sub),
         work,
-        entry=(4, 3),  # z0 per entry; offsets
+        per_entry=(4,),  # z0
+        offsets_at=3,
     )
     return tq, z, sens, status
 

@@ -32,8 +32,6 @@ import numpy as np
 
 #: At most this many threads per batch.
 MAX_THREADS = 4
-#: A batch with fewer entries than this runs in turn.
-MIN_ENTRIES = 2
 
 _limit: int | None = None
 
@@ -114,7 +112,7 @@ def map_entries(fn: Callable[[Any], Any], items: Sequence[Any]) -> list[Any]:
     the caller's floating-point error state (numpy's is per thread). ``fn`` must not wait
     on this pool itself."""
     n = min(n_threads(), len(items))
-    if n <= 1 or len(items) < MIN_ENTRIES:
+    if n <= 1:
         return [fn(x) for x in items]
     out: list[Any] = [None] * len(items)
     order = iter(range(len(items)))
