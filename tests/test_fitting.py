@@ -20,10 +20,10 @@ CURRENTS = (0.0, 0.5, 1.0)
 TRUTH = {"k_x": 0.8, "k_wa": 0.5, "k_wb": 1.5, "rho": 20.0, "k_s": 158.0}
 
 
-def _release_data(noise: float, seed: int = 0, duration: float = 2.0) -> FitData:
+def _release_data(noise: float, seed: int = 0, duration: float = 2.0, currents=CURRENTS) -> FitData:
     """A release set of the Dahl truth as the output-error fit sees it (all samples used)."""
     data = generate(
-        Model("dahl", TRUTH), currents=CURRENTS, duration=duration, noise=noise, seed=seed
+        Model("dahl", TRUTH), currents=currents, duration=duration, noise=noise, seed=seed
     )
     runs = list(data.runs)
     return FitData(
@@ -157,6 +157,50 @@ def test_a_fold_whose_linear_step_is_exact_skips_the_iterations(monkeypatch):
     off = dataclasses.replace(fit, x=fit.x * 1.3)
     OutputErrorFitter(fd, par, max_nfev=60).heldout_at(off)
     assert calls
+
+
+def test_a_direction_the_data_leave_flat_has_no_finite_interval():
+    """Two runs at one current: k_wa and k_wb enter only as k_wa + 0.5 k_wb, a direction
+    the data leave exactly flat. Neither gets an interval (not a zero-width one from the
+    pseudo-inverse), both are not identifiable and say why; the other parameters keep
+    finite intervals that hold the truth."""
+    fd = _release_data(noise=1e-3, seed=3, currents=(0.5, 0.5))
+    fit = OutputErrorFitter(fd, FamilyParametrization("dahl", "release", _start(1.1))).fit(
+        heldout=False
+    )
+    for k in ("k_wa", "k_wb"):
+        assert fit.stderr[k] == np.inf and not fit.identifiable[k]
+        assert f"{k} is not identifiable (the data leave a direction of the fit flat" in " ".join(
+            fit.notes
+        )
+    for k in ("k_x", "rho", "k_s"):
+        lo, hi = fit.ci95[k]
+        assert np.isfinite(fit.stderr[k]) and lo <= TRUTH[k] <= hi, k
+    combined = fit.params["k_wa"] + 0.5 * fit.params["k_wb"]
+    assert combined == pytest.approx(TRUTH["k_wa"] + 0.5 * TRUTH["k_wb"], rel=0.01)
+
+
+def test_a_diverging_fold_says_why_its_heldout_error_is_missing(monkeypatch):
+    """A held-out prediction that diverges gives no held-out RMS, and the fit's notes say
+    why, whether the folds ran inside fit() or later through heldout_at()."""
+    fd = _release_data(noise=1e-3, seed=11)
+    par = FamilyParametrization("dahl", "release", _start(1.1))
+    fit = OutputErrorFitter(fd, par, max_nfev=60).fit(heldout=False)
+    names = list(par.names)
+
+    def unstable(self, fold, v_gn, rss_gn):  # the fit without the fold: negative damping
+        x = np.array(v_gn[: self.npar])
+        x[names.index("k_x")] = -500.0
+        return x
+
+    monkeypatch.setattr(OutputErrorFitter, "_fold_refit", unstable)
+    late = OutputErrorFitter(fd, par, max_nfev=60).heldout_at(fit)
+    assert late.heldout_rms is None
+    why = [n for n in late.notes if "held-out RMS not reported" in n]
+    assert len(why) == 1 and why[0].startswith("the held-out prediction of run ")
+    assert not any("held-out RMS not reported" in n for n in fit.notes)  # not shared
+    early = OutputErrorFitter(fd, par, max_nfev=60).fit(heldout=True)
+    assert early.heldout_rms is None and why[0] in early.notes
 
 
 def test_a_state_space_model_is_fitted_like_a_family():

@@ -44,6 +44,9 @@ Z95 = 1.959963984540054
 POLISH_MIN_ITER = 2
 #: The bulk fit is used when the full data take this many times its integration work.
 BULK_MIN_GAIN = 2.0
+#: A parameter whose scaled loading on a flat direction of the Gram matrix (a singular
+#: value below 1e-10 of the largest) exceeds this has no finite interval.
+FLAT_LOADING = 0.1
 #: Relative cost change at which the bulk fit hands over to the full data.
 BULK_TOL = 1e-5
 #: Levenberg-Marquardt iterations of each held-out fold after its Gauss-Newton step
@@ -442,6 +445,12 @@ class OutputErrorFitter:
             G[:, j] = [(pj[kk] - p[kk]) / h for kk in keys]
         covp = G @ covx @ G.T
         se = np.sqrt(np.clip(np.diag(covp), 0, None))
+        # the pseudo-inverse gives a direction the data leave flat (a singular value below
+        # tol) no variance; its parameters are not bounded at all: infinite intervals
+        flat = np.abs(Vt[S <= tol][:, : self.npar]) > FLAT_LOADING
+        if flat.size:
+            free = flat.any(axis=0)
+            se[(np.abs(G[:, free]) > 0).any(axis=1)] = np.inf
         ci = {kk: (p[kk] - Z95 * s, p[kk] + Z95 * s) for kk, s in zip(keys, se, strict=True)}
         stderr = dict(zip(keys, map(float, se), strict=True))
         notes: list[str] = []
@@ -464,7 +473,12 @@ class OutputErrorFitter:
                 if abs(vec[j]) > 0.3 and self.par.names[j] in ident:
                     ident[self.par.names[j]] = False
         for kk in keys:
-            if not ident[kk]:
+            if not np.isfinite(stderr[kk]):
+                notes.append(
+                    f"{kk} is not identifiable (the data leave a direction of the fit flat: "
+                    "no finite interval)"
+                )
+            elif not ident[kk]:
                 notes.append(
                     f"{kk} is not identifiable (95 % interval [{ci[kk][0]:.4g}, {ci[kk][1]:.4g}] "
                     f"is wider than its value {p[kk]:.4g})"
@@ -505,7 +519,9 @@ class OutputErrorFitter:
             return fit
         v = np.concatenate([np.asarray(fit.x, dtype=float), np.asarray(fit.nuisance).ravel()])
         rms, preds = self._heldout(v, self.residuals(v), self.jacobian(v))
-        return dataclasses.replace(fit, heldout_rms=rms, heldout_predictions=preds)
+        # why there is none (a fold's prediction diverged) is said, as fit() says it
+        notes = fit.notes if rms is not None else [*fit.notes, self.heldout_note]
+        return dataclasses.replace(fit, heldout_rms=rms, heldout_predictions=preds, notes=notes)
 
     def _at_bounds(self, v: np.ndarray) -> np.ndarray:
         """Mask of the entries of ``v`` (parameters, then initial states) at a bound."""

@@ -39,6 +39,8 @@ def family_table(res: Results) -> str:
             else "each run (the runs share one test condition)"
         )
         rows.append(f"held-out RMS: {what} predicted by the fit without it")
+    for name, f in res.families.items():  # a '-' where the folds ran says why
+        rows += [f"{name}: {n}" for n in f.notes if "held-out RMS not reported" in n]
     # the table's fits; with a re-selection, the families were fitted again with effects
     rs = res.reselection or {}
     without = f" without {', '.join(rs.get('effects', []))}" if rs else ""
@@ -304,7 +306,7 @@ def html_summary(res: Results) -> str:
     f = res.families[res.family]
     prow = "".join(
         f"<tr><td>{e(k)}</td><td>{p.value:.6g}</td><td>"
-        + (f"[{p.ci95[0]:.5g}, {p.ci95[1]:.5g}]" if p.ci95 else "")
+        + (f"[{_num(p.ci95[0], '.5g')}, {_num(p.ci95[1], '.5g')}]" if p.ci95 else "")
         + f"</td><td>{'' if p.identifiable else 'not identifiable'}</td></tr>"
         for k, p in f.parameters.items()
     )
