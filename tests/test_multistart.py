@@ -26,6 +26,7 @@ from hystdisc.fitting.multistart import (
 )
 from hystdisc.fitting.staged import levels_start
 from hystdisc.models import Model
+from hystdisc.registry import get_family
 from hystdisc.simulation.synth import generate
 
 DAHL = {"k_x": 0.45, "k_wa": 0.7, "k_wb": 1.6, "rho": 30.0, "k_s": 135.0}
@@ -64,6 +65,47 @@ def test_a_family_never_ends_worse_than_a_model_it_contains():
     assert out["lugre"].rss <= dahl.rss * (1 + 1e-6)
     assert out["lugre"].extra["nested_from"] == "dahl"
     assert any("refitted from the optimum of dahl" in n for n in out["lugre"].notes)
+
+
+def test_a_family_above_the_floor_screens_an_approximate_optimum_that_starts_worse():
+    """A seed-form Bouc-Wen on a 2048-count encoder (values of a stress-suite set the
+    first two suites never drew) stuck at 1.3 times the floor near n = 0.1; the standard
+    form, at the floor, maps into it only approximately: both readings start worse than
+    the stuck fit, yet 8 iterations from one reach the floor and the truth."""
+    truth = {"alpha_1": 0.445627, "alpha_2": 2.96231, "c_1": 0.25198, "c_2": 1.10231}
+    truth |= {"beta": 7.36134, "gamma": 5.1155, "delta": 15.8588, "n": 0.593995, "k_s": 150.126}
+    data = generate(
+        Model("bouc-wen", truth), currents=(0, 0.5, 1), duration=3, noise=0.0,
+        encoder_counts=2048, seed=5,
+    )  # fmt: skip
+    d = Discovery(families=["bouc-wen"], close_loop=False, heldout=False, n_starts=1).fit(data)
+    fd = d.fit_data_
+    floor = fd.noise_std
+
+    def fit(family, start):
+        par = FamilyParametrization(family, "release", {**start, "J": 1.0})
+        return OutputErrorFitter(fd, par, max_nfev=40).fit(heldout=False)
+
+    std = fit("bouc-wen-std", {"alpha_1": 0.53, "alpha_2": 3.64, "c_1": 0.26, "c_2": 1.11,
+                               "beta": 6.9, "gamma": 4.59, "n": 1.28, "k_s": 150.2})  # fmt: skip
+    stuck = fit("bouc-wen", {"alpha_1": 0.8, "alpha_2": 4.2, "c_1": 0.2, "c_2": 0.97,
+                             "beta": 29.2, "gamma": 7.2, "n": 0.031, "k_s": 149.4})  # fmt: skip
+    assert std.rms < 1.1 * floor < stuck.rms
+    for p in mapped_starts("bouc-wen", std):  # every reading starts worse than the stuck fit
+        assert start_rss(fd, FamilyParametrization("bouc-wen", "release", p)) > stuck.rss
+    fits = {"bouc-wen": stuck, "bouc-wen-std": std}
+    assert nesting_pass(fd, fits, max_nfev=40)["bouc-wen"] is stuck  # raw starts only
+    new = nesting_pass(fd, fits, max_nfev=40, screen_above=1.1 * floor)["bouc-wen"]
+    assert new.rms < 1.01 * floor
+    # the truth in the family's normalization (z_sat = 1), as results.json reports it
+    fam = get_family("bouc-wen")
+    own = fam.from_terms(fam.to_terms({k: v for k, v in truth.items() if k != "k_s"}))
+    for k, v in own.items():
+        assert new.params[k] == pytest.approx(v, rel=0.03), k
+    assert new.extra["nested_from"] == "bouc-wen-std"
+    # the notes are the new optimum's own and the refit's; none of the stuck fit's
+    assert not set(stuck.notes) & set(new.notes)
+    assert any("after 8 iterations" in n for n in new.notes)
 
 
 @pytest.mark.parametrize("family", ["bouc-wen", "bouc-wen-std"])

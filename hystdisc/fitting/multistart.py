@@ -9,6 +9,10 @@ than Dahl's own). Three tools make the fits global enough to trust:
    fitted first, and the others only run when it ends above the floor); the fit's note says how many starts reached
    the optimum (RMS within :data:`REACHED_RTOL`) and the spread when they disagree, and
    ``fit.extra["starts"]`` holds every start's RMS.
+   The discovery adds, for a family above the floor, the optima of its related
+   families (``Family.start_from``, read through :func:`mapped_starts`) to its starts:
+   on a coarse encoder stage 1 can miss every basin (a LuGre set whose stage-1 start was
+   679 times the floor reached it in 8 iterations from Dahl's optimum).
 2. :func:`random_starts` perturbs a start inside the admissible box (log-uniform factors
    up to :data:`RANDOM_FACTOR` on every free parameter, the exponents additively).
 3. :func:`nesting_pass`: the optimum of every other family, mapped through the term form
@@ -18,7 +22,14 @@ than Dahl's own). Three tools make the fits global enough to trust:
    kept), is simulated once in each family; when it fits better than the family's own
    optimum the family is refitted from it. The pass repeats while it changes a fit (at
    most :data:`NESTING_PASSES`). A family then never ends with a worse fit than a
-   family it contains.
+   family it contains. Where the correspondence is approximate (the two Bouc-Wen forms,
+   Dahl or LuGre into Bouc-Wen) a mapped optimum can start worse than the family's own
+   and still lead to a better basin: a family left above the noise floor
+   (``screen_above``) screens the mapped optima of the families at the floor that have no
+   more parameters than it, :data:`SCREEN_NFEV` iterations each, and is refitted from the
+   best when its screen fits better (a seed-form Bouc-Wen stuck at 1.4 times a 2048-count
+   encoder's floor reached the floor and its truth from the standard form's optimum in 8
+   iterations).
 
 Examples
 --------
@@ -123,9 +134,10 @@ def best_of_starts(
             lead = OutputErrorFitter(data, starts[0][1], max_nfev=max_nfev).fit(heldout=False)
     if lead is not None and good_rms is not None:
         if lead.rms <= good_rms:
-            lead.notes.append(
+            _starts_note(
+                lead,
                 f"the first of {len(starts)} starts ({labels[0]}) reached the noise floor "
-                f"(RMS {lead.rms:.4g}): the others were not needed"
+                f"(RMS {lead.rms:.4g}): the others were not needed",
             )
             lead.extra["starts"] = {labels[0]: float(lead.rms)}
             return lead
@@ -167,17 +179,25 @@ def best_of_starts(
         if lead is not None
         else f"each screened {screen_nfev} iterations"
     )
-    best.notes.append(
+    _starts_note(
+        best,
         f"{len(reached)} of {len(labels)} starts reached the optimum ({how}, the best "
         f"continued; RMS within {REACHED_RTOL:.0%}: {', '.join(reached)})"
         + (
             "; the others ended at RMS " + ", ".join(f"{rms[lb]:.4g} ({lb})" for lb in others)
             if others
             else ""
-        )
+        ),
     )
     best.extra["starts"] = rms
     return best
+
+
+def _starts_note(fit: OEFit, note: str) -> None:
+    """Add the note on how the starts ended (also kept in ``extra["starts_note"]``, which a
+    refit from another family's optimum carries over)."""
+    fit.notes.append(note)
+    fit.extra["starts_note"] = note
 
 
 def random_starts(
@@ -259,17 +279,22 @@ def nesting_pass(
     max_nfev: int,
     say: Say = _quiet,
     passes: int = NESTING_PASSES,
+    screen_above: float | None = None,
 ) -> dict[str, OEFit]:
     """Refit each family from another family's optimum when that optimum, mapped into it,
     fits better than its own (see the module docstring); repeated while a pass changes a
     fit (at most ``passes`` times: a refitted family can lift one that contains it).
+    With ``screen_above`` (an RMS: the noise floor), a family whose RMS is above it also
+    screens the mapped optima of the families at or below it with no more parameters,
+    when they start worse than its own.
     Returns the updated fits (the same objects where nothing changed); each refit carries
     a note."""
     out = dict(fits)
+    screened: set[tuple] = set()  # (family, other, their RSS): the pairs already screened
     for _ in range(passes):
         changed = False
         for name in list(out):
-            new = _nested_refit(data, out, name, max_nfev, say)
+            new = _nested_refit(data, out, name, max_nfev, say, screen_above, screened)
             if new is not None:
                 out[name], changed = new, True
         if not changed:
@@ -278,13 +303,21 @@ def nesting_pass(
 
 
 def _nested_refit(
-    data: FitData, fits: dict[str, OEFit], name: str, max_nfev: int, say: Say
+    data: FitData,
+    fits: dict[str, OEFit],
+    name: str,
+    max_nfev: int,
+    say: Say,
+    screen_above: float | None = None,
+    screened: set[tuple] | None = None,
 ) -> OEFit | None:
     """``name`` refitted from the best mapped optimum of the others, or None."""
     fit = fits[name]
     if fit.is_system:
         return None
     best_rss, source = fit.rss, None
+    worse: list[tuple[float, str, Parametrization]] = []  # mapped starts that start worse
+    done = screened if screened is not None else set()
     for other, ofit in fits.items():
         if other == name or not ofit.rss < fit.rss * (1 - NESTING_RTOL):
             continue
@@ -293,18 +326,40 @@ def _nested_refit(
             rss = start_rss(data, par, ofit.nuisance)
             if rss < best_rss * (1 - NESTING_RTOL):
                 best_rss, source = rss, (other, par)
+            elif (
+                screen_above is not None
+                and ofit.rms <= screen_above < fit.rms
+                and len(ofit.par.names) <= len(fit.par.names)
+                and np.isfinite(rss)
+                and (name, other, fit.rss, ofit.rss) not in done
+            ):
+                # a model at the floor with no more parameters: this family should get
+                # there too; its mapped optimum is screened below
+                worse.append((rss, other, par))
+    after = ""  # the mapped start fitted better as it was
+    if source is None and worse:
+        # an approximate correspondence: a few iterations from each decide
+        for _, other, par in sorted(worse, key=lambda w: w[0]):
+            say(f"stage 2: {name} screened from the optimum of {other}")
+            x, rss = OutputErrorFitter(data, par, max_nfev=SCREEN_NFEV).screen(SCREEN_NFEV)
+            if rss < best_rss * (1 - NESTING_RTOL):
+                best_rss, source = rss, (other, par.like(par.params(x), par.effects))
+                after = f" after {SCREEN_NFEV} iterations"
+        done.update((name, o, fit.rss, fits[o].rss) for _, o, _ in worse)
     if source is None:
         return None
     other, par = source
-    say(f"stage 2: {name} refitted from the optimum of {other} (it fits better there)")
+    say(f"stage 2: {name} refitted from the optimum of {other} (it fits better there{after})")
     with np.errstate(all="ignore"):
         new = OutputErrorFitter(data, par, max_nfev=max_nfev).fit(heldout=False)
     if not new.rss < fit.rss * (1 - NESTING_RTOL):
         return None
-    new.notes.extend(n for n in fit.notes if not n.startswith("refitted from the optimum"))
+    # the new optimum's own notes (identifiability) stand; of the old fit's, the starts'
+    if "starts_note" in fit.extra:
+        new.notes.append(fit.extra["starts_note"])
     new.notes.append(
         f"refitted from the optimum of {other}, mapped into it, which fitted "
-        f"better (RMS {fit.rms:.4g} -> {new.rms:.4g}): a family never ends worse "
+        f"better{after} (RMS {fit.rms:.4g} -> {new.rms:.4g}): a family never ends worse "
         "than a model it contains"
     )
     new.extra.update({k: v for k, v in fit.extra.items() if k not in new.extra})
