@@ -89,7 +89,13 @@ from hystdisc.fitting import (
     screen_runs,
     staged_fit,
 )
-from hystdisc.fitting.multistart import best_of_starts, nesting_pass, random_starts, system_fit
+from hystdisc.fitting.multistart import (
+    best_of_starts,
+    mapped_starts,
+    nesting_pass,
+    random_starts,
+    system_fit,
+)
 from hystdisc.fitting.selection import select_family
 from hystdisc.fitting.staged import levels_start
 from hystdisc.models import FAMILIES, format_equation, get_family
@@ -207,8 +213,11 @@ class Discovery(BaseEstimator):
     n_starts : int
         Starts of each term family's output-error fit (:mod:`hystdisc.fitting.multistart`):
         stage 1's, up to :data:`GRID_BASINS` other basins of its shape's stage-1 grid, then
-        random perturbations of stage 1's inside the admissible box. Each runs a few
-        iterations, the best continues; the fit's notes say how many reached the optimum.
+        random perturbations of stage 1's inside the admissible box; when the first ends
+        above the noise floor, these, a start from the per-level fits and the optima of
+        the related families (``Family.start_from``: Dahl in LuGre, the other Bouc-Wen
+        form...) each run a few iterations and the best continues; the fit's notes say
+        how many reached the optimum.
         1: stage 1's start alone. Every family is then refitted from another family's
         optimum when that fits better inside it (nesting consistency).
 
@@ -665,6 +674,17 @@ class Discovery(BaseEstimator):
                 pars.append((label, par))
             if (lv := levels_start(fd, first.par, first.params)) is not None:
                 pars.append(("current levels", first.par.like(lv, first.par.effects)))
+            # the optima of the related families, read in this one (no stage 1 involved)
+            for other in FAMILIES[name].start_from:
+                ofit = self.family_fits_.get(other)
+                readings = [] if ofit is None else mapped_starts(name, ofit)
+                for k, reading in enumerate(readings):
+                    start, norm = _normalization(name, reading)
+                    par = FamilyParametrization(
+                        name, eq.experiment, start, fixed=family_fixed(name), normalization=norm
+                    )
+                    label = f"{other}'s optimum" + (f" {k + 1}" if len(readings) > 1 else "")
+                    pars.append((label, par))
             good = NOISE_RATIO * fd.noise_std
             return best_of_starts(
                 fd,
@@ -710,7 +730,10 @@ class Discovery(BaseEstimator):
                 refits = self._map(more_starts, more)
                 self.family_fits_.update(zip(more, refits, strict=True))
         if nest and more:
-            self.family_fits_ = nesting_pass(fd, self.family_fits_, self.max_nfev, say)
+            # after the starts: a family still above the floor screens the mapped optima too
+            self.family_fits_ = nesting_pass(
+                fd, self.family_fits_, self.max_nfev, say, screen_above=good
+            )
         self.family_fits_ = dict(zip(fams, self._map(with_heldout, fams), strict=True))
         self.discovered_fit_ = self.family_fits_[same[0]] if same else fits[-1]
         if sys_fams:

@@ -116,8 +116,9 @@ def add_discovery_options(p: argparse.ArgumentParser) -> None:
         default=4,
         metavar="N",
         help="starts of each family's output-error fit (default 4: stage 1's, other basins "
-        "of its stage-1 grid, random ones in the admissible box; the others run only when "
-        "the first ends above the noise floor; 1: stage 1's alone)",
+        "of its stage-1 grid, random ones in the admissible box; the others, with the "
+        "current-levels start and the related families' optima, run only when the first "
+        "ends above the noise floor; 1: stage 1's alone)",
     )
     p.add_argument("--ensemble", action="store_true", help="inclusion probabilities by bagging")
     p.add_argument(

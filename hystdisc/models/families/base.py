@@ -48,6 +48,12 @@ class Family:
     #: ``sigma_1 = 0`` is Dahl with a current-dependent viscous term); see
     #: :mod:`hystdisc.closing.reduction`.
     reductions: tuple[tuple[Mapping[str, float], str, tuple[str, ...]], ...] = ()
+    #: Families whose output-error optimum, read in this family (:meth:`term_starts`), is
+    #: one of this family's starts: the ones it contains exactly or nearly (Dahl in LuGre,
+    #: Dahl and LuGre in Bouc-Wen as its gamma term becomes Dahl's), the other Bouc-Wen
+    #: form, and the family that contains it (LuGre for Dahl). A start that needs no
+    #: equation-error stage: on a coarse encoder stage 1 can miss every basin.
+    start_from: tuple[str, ...] = ()
 
     def param_names(self) -> list[str]:
         """Names of the damper parameters (rig parameters excluded)."""

@@ -39,6 +39,7 @@ class BoucWen(Family):
     linear_torque = {"z": "alpha_1", "i*z": "alpha_2", "theta_dot": "c_1", "i*theta_dot": "c_2"}
     hysteresis_terms = ("theta_dot", "theta_dot*|z|^n", "|theta_dot|*z*|z|^n")
     _gamma_term = "|theta_dot|*z*|z|^n"
+    start_from = ("bouc-wen-std", "dahl", "lugre")
     #: Degree of z in the gamma term beyond ``|z|^n`` (seed form: z|z|^n, one more).
     gamma_extra_degree = 1
     #: The exponent at which the gamma term is Dahl's ``|theta_dot|*z`` (seed form: n -> 0,
@@ -147,6 +148,7 @@ class BoucWenStd(BoucWen):
     params = param_table(_PARAMS.format(beta=5, gamma=15, gamma_shape="z |z|^(n-1)", n=2))
     hysteresis_terms = ("theta_dot", "theta_dot*|z|^n", "|theta_dot|*z*|z|^(n-1)")
     _gamma_term = "|theta_dot|*z*|z|^(n-1)"
+    start_from = ("bouc-wen", "dahl", "lugre")
     gamma_extra_degree = 0
     dahl_exponent = 1.0
     # n = 1, beta = 0: dz/dt = delta theta_dot - gamma |theta_dot| z with delta = gamma

@@ -24,6 +24,7 @@ class Dahl(Family):
     linear_torque = {"theta_dot": "k_x", "z": "k_wa", "i*z": "k_wb"}
     torque_terms = tuple(linear_torque)
     hysteresis_terms = ("theta_dot", "|theta_dot|*z")
+    start_from = ("lugre",)
 
     def to_terms(self, p):
         return TermModel(

@@ -30,6 +30,7 @@ class LuGre(Family):
     # sigma_1 = 0: dz/dt no longer enters the torque, and sigma_b i theta_dot is the
     # current-dependent viscous effect (z = w / (sigma_0 a_0), rho = sigma_0 a_0)
     reductions = (({"sigma_1": 0.0}, "dahl", ("current_viscous",)),)
+    start_from = ("dahl",)
 
     def to_terms(self, p):
         r = p["sigma_0"] * p["a_0"]
