@@ -74,6 +74,7 @@ from hystdisc.closing.refit import (
     refit_with,
     refit_without,
     screen_starts,
+    stage1_start,
 )
 from hystdisc.closing.residual import (
     NOISE_RATIO,
@@ -291,8 +292,13 @@ def _backward(data, fit, out: LoopResult, max_nfev, heldout, say, fits: dict) ->
 class _Round:
     """The refits of one round of :func:`augment` (by effect: the best refit and its record)."""
 
-    def __init__(self, data, current, round_no, max_nfev, heldout, noise_std, say, envelope):
+    def __init__(
+        self, data, current, round_no, max_nfev, heldout, noise_std, say, envelope, stage1=None
+    ):
         self.data = data
+        #: ``stage1(score)``: the stage-1 start of the current model plus the score's effect
+        #: (made on first use), the fallback of a local refit; None without stage-1 data
+        self.stage1 = stage1
         self.envelope = envelope
         self.noise_std = noise_std
         good_rms = NOISE_RATIO * noise_std
@@ -315,9 +321,11 @@ class _Round:
             if s.starts is not None:  # a structural effect, from its own starts
                 new = refit_structural(self.data, cur, s.name, s.starts, self.max_nfev, False)
             else:
+                more = None if start is not None or self.stage1 is None else self.stage1
                 new = refit_with(
-                    self.data, cur, s.name, s.estimate, self.max_nfev, False, start, self.good_rms
-                )
+                    self.data, cur, s.name, s.estimate, self.max_nfev, False, start,
+                    self.good_rms, fallback=None if more is None else (lambda: more(s)),
+                )  # fmt: skip
         ok = fit_ok(new, cur)
         wald = wald_chi2(new, s.name) if ok else 0.0
         step = {
@@ -538,7 +546,17 @@ def augment(
             scores.sort(key=lambda s: -s.evidence)
         diag = {"round": round_no, "candidates": [s.to_dict() for s in scores]}
         out.diagnosis.append(diag)
-        rnd = _Round(data, current, round_no, max_nfev, heldout, noise_std, say, envelope)
+        stage1 = None
+        if eq is not None and not current.is_system:
+
+            def stage1(s: EffectScore, cur: OEFit = current) -> dict | None:
+                if s.start is None:
+                    say(f"closing the loop: stage-1 start with {s.name}")
+                    effects = (*cur.par.effects, s.name)
+                    s.start = stage1_start(eq, cur, effects, data, s0=s0)
+                return s.start
+
+        rnd = _Round(data, current, round_no, max_nfev, heldout, noise_std, say, envelope, stage1)
         screened = False
         if eq is not None and current.rms > FAR_RATIO * noise_std:
             rnd.screen(eq, scores, diag, s0)  # far from the noise: the global view first
