@@ -230,6 +230,36 @@ def test_the_loop_finds_an_offset_from_several_starts(offset_run):
     assert not {"cubic_stiffness", "quadratic_damping"} & set(loop.effects)
 
 
+def test_a_local_effect_refit_that_falls_short_runs_once_more_from_the_fallback():
+    """refit_with: the fallback start (the loop's stage-1 start, made on demand) is asked
+    for only when the local refit falls short of the floor, and the better of the two
+    refits by BIC is kept."""
+    from hystdisc.closing.refit import refit_with
+
+    truth = {**DAHL, "theta_off": 0.015}
+    data = generate(
+        Model("dahl", DAHL, effects={"offset": {"theta_off": 0.015}}), currents=(0, 0.5, 1),
+        duration=2, noise=NOISE, seed=8,
+    )  # fmt: skip
+    d = Discovery(model="dahl", close_loop=False, heldout=False, n_starts=1).fit(data)
+    fd, base = d.fit_data_, d.family_fits_["dahl"]
+    asked = []
+
+    def fallback():
+        asked.append(1)
+        return {**truth, "J": 1.0}
+
+    near = refit_with(fd, base, "offset", good_rms=10 * NOISE, fallback=fallback)
+    assert not asked  # the local refit reached the floor: no second start
+    # a floor no fit reaches: the fallback runs, and the lower BIC of the two is kept
+    both = refit_with(fd, base, "offset", good_rms=0.0, fallback=fallback)
+    assert asked == [1]
+    par = base.par.like({**truth, "J": 1.0}, ("offset",))
+    alone = OutputErrorFitter(fd, par).fit(heldout=False)
+    assert both.bic <= min(near.bic, alone.bic) + 1e-6
+    assert refit_with(fd, base, "offset", good_rms=0.0, fallback=lambda: None).bic == near.bic
+
+
 def test_current_levels_start_undoes_a_trade_between_the_slopes():
     # a joint Bingham fit can trade the viscous slope c_b against the friction slope f_b;
     # fitted one current level at a time there is no slope to trade, and the lines
