@@ -128,6 +128,34 @@ def _stderr_printer() -> Callable[[str], None]:
     return say
 
 
+def _helper_families(fits: dict[str, OEFit], good_rms: float) -> dict[str, list[str]]:
+    """For each term family in ``fits`` above ``good_rms``, its related families
+    (``Family.start_from``, and theirs) that ``fits`` lacks: fitted as its starts only.
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace as NS
+    >>> _helper_families({"bouc-wen": NS(rms=2.0, is_system=False)}, 1.1)
+    {'bouc-wen': ['bouc-wen-std', 'dahl', 'lugre']}
+    >>> _helper_families({"bouc-wen": NS(rms=1.0, is_system=False)}, 1.1)
+    {}
+    """
+    out: dict[str, list[str]] = {}
+    for name, fit in fits.items():
+        if name not in FAMILIES or fit.is_system or not fit.rms > good_rms:
+            continue
+        found: list[str] = []
+        todo = [name]
+        while todo:
+            for other in FAMILIES[todo.pop(0)].start_from:
+                if other not in fits and other not in found:
+                    found.append(other)
+                    todo.append(other)
+        if found:
+            out[name] = found
+    return out
+
+
 def _normalization(name: str, start: dict[str, float]) -> tuple[dict[str, float], str]:
     """Scale of z for the output-error fit of ``name`` started at ``start``.
 
@@ -650,8 +678,10 @@ class Discovery(BaseEstimator):
                     best.terms, best.shape, best.coefs, best.s, best.J, eq.experiment
                 )
                 return OutputErrorFitter(fd, tpar, max_nfev=self.max_nfev).fit(heldout=False)
-            name = fams[k]
-            say(f"stage 2: output-error fit of {name} ({k + 1}/{len(fams)})")
+            say(f"stage 2: output-error fit of {fams[k]} ({k + 1}/{len(fams)})")
+            return first_fit(fams[k])
+
+        def first_fit(name):
             start, norm = _normalization(name, self._family_start(eq, name))
             par = FamilyParametrization(
                 name, eq.experiment, start, fixed=family_fixed(name), normalization=norm
@@ -712,14 +742,21 @@ class Discovery(BaseEstimator):
 
         fits = self._map(family_fit, list(range(len(fams) + (0 if same else 1))))
         self.family_fits_: dict[str, OEFit] = dict(zip(fams, fits, strict=False))
-        nest = len(fams) > 1  # no family ends worse than a model it contains
+        good = NOISE_RATIO * fd.noise_std
+        # a family above the floor whose related families were not asked for (a declared
+        # family, a short --families list) gets them fitted too, as its starts only
+        helping = _helper_families(self.family_fits_, good) if self.n_starts > 1 else {}
+        helpers = list(dict.fromkeys(h for hs in helping.values() for h in hs))
+        if helpers:
+            say(f"stage 2: {', '.join(helpers)} fitted as starts (not compared)")
+            self.family_fits_.update(zip(helpers, self._map(first_fit, helpers), strict=True))
+        nest = len(self.family_fits_) > 1  # no family ends worse than a model it contains
         if nest:
             self.family_fits_ = nesting_pass(fd, self.family_fits_, self.max_nfev, say)
         # every family still above the noise is fitted from more starts: however far it is
         # from the best family, it may be the true one in a wrong basin (a Bingham release
         # on an encoder stopped at 4.9x LuGre's RMS from stage 1's start and reached the
         # floor from its current-levels start)
-        good = NOISE_RATIO * fd.noise_std
         more = [n for n, f in self.family_fits_.items() if f.rms > good]
         if self.n_starts > 1:
             if len(more) == 1:
@@ -733,6 +770,11 @@ class Discovery(BaseEstimator):
             # after the starts: a family still above the floor screens the mapped optima too
             self.family_fits_ = nesting_pass(
                 fd, self.family_fits_, self.max_nfev, say, screen_above=good
+            )
+        for name, hs in helping.items():  # the helpers' fits only served as starts
+            self.family_fits_[name].notes.append(
+                f"its first start ended above the noise floor: {', '.join(hs)} were fitted "
+                "too, their optima as further starts (not compared)"
             )
         self.family_fits_ = dict(zip(fams, self._map(with_heldout, fams), strict=True))
         self.discovered_fit_ = self.family_fits_[same[0]] if same else fits[-1]

@@ -108,6 +108,28 @@ def test_a_family_above_the_floor_screens_an_approximate_optimum_that_starts_wor
     assert any("after 8 iterations" in n for n in new.notes)
 
 
+def test_a_declared_family_above_the_floor_is_started_from_its_related_families():
+    """--model bouc-wen on a 2048-count encoder (the set above, two currents, 6 s): stage
+    1's start and its basins end at 19 times the floor; the standard form, Dahl and LuGre,
+    fitted as starts only, take it to the floor and its truth, and only the declared
+    family is reported."""
+    truth = {"alpha_1": 0.445627, "alpha_2": 2.96231, "c_1": 0.25198, "c_2": 1.10231}
+    truth |= {"beta": 7.36134, "gamma": 5.1155, "delta": 15.8588, "n": 0.593995, "k_s": 150.126}
+    data = generate(
+        Model("bouc-wen", truth), currents=(0.25, 1), duration=6, noise=0.0,
+        encoder_counts=2048, seed=5,
+    )  # fmt: skip
+    d = Discovery(model="bouc-wen", close_loop=False, heldout=False).fit(data)
+    assert list(d.family_fits_) == ["bouc-wen"]
+    fit = d.family_fits_["bouc-wen"]
+    assert fit.rms < 1.01 * d.fit_data_.noise_std
+    fam = get_family("bouc-wen")
+    own = fam.from_terms(fam.to_terms({k: v for k, v in truth.items() if k != "k_s"}))
+    for k, v in own.items():
+        assert fit.params[k] == pytest.approx(v, rel=0.05), k
+    assert any("bouc-wen-std, dahl, lugre were fitted too" in n for n in fit.notes)
+
+
 @pytest.mark.parametrize("family", ["bouc-wen", "bouc-wen-std"])
 def test_dahl_maps_into_bouc_wen_where_its_exponent_makes_the_gamma_term_dahls(family):
     # seed form: |w| z |z|^n at n -> 0 (the lower bound); standard form: |w| z |z|^(n-1)
