@@ -56,13 +56,8 @@ from hystdisc.closing.residual import NOISE_RATIO
 from hystdisc.data import (
     Dataset,
     distinct_currents,
-    estimate_noise,
-    filter_windows,
-    measurement_noise,
-    trim_release,
     validate,
 )
-from hystdisc.data.conditions import detect_conditions
 from hystdisc.data.envelope import Envelope
 from hystdisc.discovery import (
     DEFAULT_TORQUE_TERMS,
@@ -70,7 +65,6 @@ from hystdisc.discovery import (
     SHAPES,
     EqData,
     describe_structure,
-    differentiate,
     family_start,
     family_starts,
     fit_shape,
@@ -83,10 +77,8 @@ from hystdisc.fitting import (
     OEFit,
     OutputErrorFitter,
     TermParametrization,
-    apply_filter,
     confirm_glitches,
     predict_dataset,
-    screen_runs,
     staged_fit,
 )
 from hystdisc.fitting.multistart import (
@@ -96,14 +88,14 @@ from hystdisc.fitting.multistart import (
     random_starts,
     system_fit,
 )
+from hystdisc.fitting.prepare import prepare_data
 from hystdisc.fitting.selection import select_family
 from hystdisc.fitting.staged import levels_start
 from hystdisc.models import FAMILIES, format_equation, get_family
-from hystdisc.registry import experiment_names, family_names, get_experiment
+from hystdisc.registry import family_names, get_experiment
 from hystdisc.results import build_results
 from hystdisc.simulation.admissibility import check_admissible
 from hystdisc.simulation.parallel import limit_threads, usable_cpus
-from hystdisc.stats import samples_per_cycle
 
 #: Default upper limit of the threads of one discovery.
 MAX_THREADS = 4
@@ -408,112 +400,6 @@ class Discovery(BaseEstimator):
         with ThreadPoolExecutor(max_workers=min(n, len(items))) as pool:
             return list(pool.map(work, items))
 
-    def _prepare(self, dataset: Dataset) -> tuple[EqData, FitData, list[dict]]:
-        name = self.experiment or dataset.experiment
-        if name not in experiment_names():
-            raise HystdiscError(
-                f"{dataset.source}: unknown experiment type '{name}'; fix: use "
-                f"{', '.join(experiment_names()[:-1])} or {experiment_names()[-1]}"
-            )
-        exp = get_experiment(name)
-        runs = list(dataset.runs)
-        col = exp.extra_column
-        if col is not None and any(getattr(r, col) is None for r in runs):
-            raise HystdiscError(
-                f"{dataset.source}: a {exp.name} experiment needs {'an' if col[0] in 'aeiou' else 'a'}"
-                f" {col} column; fix: add it or use --experiment release"
-            )
-        # the measurement, modelled: period-to-period differences of a periodic excitation,
-        # the quantization floor of an encoder (the differentiation keeps theta_noise)
-        self.noise_ = measurement_noise(runs, exp)
-        noise = self.noise_.std
-        theta_noise = float(np.median([estimate_noise(r.theta, r.fs) for r in runs]))
-        # isolated glitches: replaced by their local prediction for stage 1 (derivatives,
-        # regression target), left out of the output-error residual (fitting/outliers.py)
-        runs, raw_y, flags, glitches = screen_runs(runs, exp, noise, theta_noise)
-        if exp.starts_at_rest:
-            runs = [trim_release(r, theta_noise) for r in runs]
-        eq_t, eq_th, eq_w, eq_a, eq_y, rows = [], [], [], [], [], []
-        fd = FitData(
-            exp.name,
-            [r.name for r in runs],
-            [],
-            [],
-            np.array([r.current for r in runs]),
-            [],
-            [],
-            [],
-            [],
-            noise,
-            self.input_hold,
-        )
-        windows = []
-        for r in runs:
-            d = differentiate(r.t, r.theta, theta_noise)
-            windows.append(d.window)
-            if not np.all(np.isfinite(d.theta_dot)) or np.ptp(r.theta) == 0:
-                raise HystdiscError(
-                    f"{dataset.source}, run {r.name}: the run never moves; fix: remove the run"
-                )
-            m = np.ones(r.t.size, dtype=bool)
-            m[: d.window // 2] = False
-            m[-(d.window // 2) or None :] = False
-            if exp.motion_imposed:
-                # forget the unknown initial z: skip until the motion has swept its range once
-                travel = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(d.theta)))])
-                m &= travel >= np.ptp(d.theta)
-                if m.sum() < 20:
-                    m[:] = True
-            eq_t.append(r.t)
-            eq_th.append(d.theta)
-            eq_w.append(d.theta_dot)
-            eq_a.append(d.theta_ddot)
-            if exp.target == "-theta_ddot":
-                eq_y.append(-d.theta_ddot)
-            else:
-                eq_y.append(np.asarray(getattr(r, exp.target), dtype=float))
-            rows.append(m)
-            fd.t.append(r.t)
-            fd.y.append(raw_y[len(fd.y)][: r.t.size])  # as measured, glitches masked
-            fd.theta.append(d.theta if exp.motion_imposed else np.asarray(r.theta, dtype=float))
-            fd.theta_dot.append(d.theta_dot)
-            fd.u.append(np.asarray(r.input, dtype=float) if exp.has_input else np.zeros(r.t.size))
-            keep = m if exp.motion_imposed else np.ones(r.t.size, dtype=bool)
-            fd.mask.append(keep & ~flags[len(fd.mask)][: r.t.size])
-        if dataset.filter is not None:  # the fit sees the damper through the rig's filter
-            windows = filter_windows(dataset.filter, runs, dataset.source)
-            apply_filter(fd, windows, dataset.filter["channels"], [r.theta for r in runs])
-        if self.noise_.method == "quantization" and self.noise_.output_quantization:
-            fd.quantum = float(self.noise_.output_quantization.step)
-        given = [r.condition for r in runs]
-        if all(c is not None for c in given):
-            fd.conditions = [str(c) for c in given]
-        else:  # from the smoothed motion (or the input record) of each run
-            fd.conditions = detect_conditions(exp, eq_t, eq_th, [r.input for r in runs])
-        scale = float(np.median([np.ptp(th) / 2 for th in eq_th])) or 1.0
-        # the smoothed signals are band-limited by the window: decimate the equation-error
-        # stage (z is still integrated with sub-steps on the decimated grid)
-        q = max(1, int(np.median(windows)) // 16)
-        qs = [q] * len(runs)
-        if exp.motion_imposed:
-            # torque is not differentiated; keep ~200 samples per cycle of each run's motion
-            qs = [max(1, int(samples_per_cycle(w) // 200)) for w in eq_w]
-            q = max(1, int(np.median(qs)))
-        dec = lambda xs: [x[::qk] for x, qk in zip(xs, qs, strict=True)]  # noqa: E731
-        eq = EqData(
-            exp.name,
-            dec(eq_t),
-            dec(eq_th),
-            dec(eq_w),
-            dec(eq_a),
-            dec(eq_y),
-            fd.currents,
-            dec(rows),
-            max(1, int(np.median(windows)) // q),
-            scale,
-        )
-        return eq, fd, glitches
-
     def _shape0(self, name: str) -> np.ndarray | None:
         """The stage-1 shape constants of ``name``'s shape (None before stage 1)."""
         shape = FAMILY_SHAPE[name]
@@ -618,7 +504,7 @@ class Discovery(BaseEstimator):
                 stacklevel=2,
             )
         say("preparing data (noise, derivatives)")
-        eq, fd, glitches = self._prepare(dataset)
+        eq, fd, glitches, self.noise_ = prepare_data(dataset, self.experiment, self.input_hold)
         exp = get_experiment(eq.experiment)
         self.experiment_ = eq.experiment
         self.noise_std_ = fd.noise_std
