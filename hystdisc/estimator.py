@@ -568,14 +568,15 @@ class Discovery(BaseEstimator):
             return first_fit(fams[k])
 
         def first_fit(name):
-            start, norm = _normalization(name, self._family_start(eq, name))
-            par = FamilyParametrization(
-                name, eq.experiment, start, fixed=family_fixed(name), normalization=norm
-            )
+            par = family_par(name, self._family_start(eq, name))
             return OutputErrorFitter(fd, par, max_nfev=self.max_nfev).fit(heldout=False)
 
-        def family_fixed(name):
-            return {p: 0.0 for p in FAMILIES[name].current_params} if self.single_current_ else {}
+        def family_par(name, start):
+            """``name`` started at ``start``: its z scale chosen there, the current terms
+            held at 0 at a single current."""
+            start, norm = _normalization(name, start)
+            fixed = {p: 0.0 for p in FAMILIES[name].current_params} if self.single_current_ else {}
+            return FamilyParametrization(name, eq.experiment, start, (), fixed, norm)
 
         def more_starts(name, mapper=None):
             """The family from its other starts (its stage-1 fit is the first), screened
@@ -583,11 +584,7 @@ class Discovery(BaseEstimator):
             pars = []
             first = self.family_fits_[name]
             for label, start in self._family_starts(eq, name, first.par.params(first.par.x0)):
-                start, norm = _normalization(name, start)
-                par = FamilyParametrization(
-                    name, eq.experiment, start, fixed=family_fixed(name), normalization=norm
-                )
-                pars.append((label, par))
+                pars.append((label, family_par(name, start)))
             if (lv := levels_start(fd, first.par, first.params)) is not None:
                 pars.append(("current levels", first.par.like(lv, first.par.effects)))
             # the optima of the related families, read in this one (no stage 1 involved)
@@ -595,12 +592,8 @@ class Discovery(BaseEstimator):
                 ofit = self.family_fits_.get(other)
                 readings = [] if ofit is None else mapped_starts(name, ofit)
                 for k, reading in enumerate(readings):
-                    start, norm = _normalization(name, reading)
-                    par = FamilyParametrization(
-                        name, eq.experiment, start, fixed=family_fixed(name), normalization=norm
-                    )
                     label = f"{other}'s optimum" + (f" {k + 1}" if len(readings) > 1 else "")
-                    pars.append((label, par))
+                    pars.append((label, family_par(name, reading)))
             good = NOISE_RATIO * fd.noise_std
             return best_of_starts(
                 fd,
@@ -618,13 +611,6 @@ class Discovery(BaseEstimator):
             if not self.heldout or fit.heldout_rms is not None:
                 return fit
             return OutputErrorFitter(fd, fit.par, max_nfev=self.max_nfev).heldout_at(fit)
-
-        def family_fit_std(eq, fd):
-            say("stage 2: output-error fit of bouc-wen-std (the start of the system families)")
-            start, norm = _normalization("bouc-wen-std", self._family_start(eq, "bouc-wen-std"))
-            fixed = family_fixed("bouc-wen-std")
-            par = FamilyParametrization("bouc-wen-std", eq.experiment, start, (), fixed, norm)
-            return OutputErrorFitter(fd, par, max_nfev=self.max_nfev).fit(heldout=False)
 
         fits = self._map(family_fit, list(range(len(fams) + (0 if same else 1))))
         self.family_fits_: dict[str, OEFit] = dict(zip(fams, fits, strict=False))
@@ -665,7 +651,9 @@ class Discovery(BaseEstimator):
         self.family_fits_ = dict(zip(fams, self._map(with_heldout, fams), strict=True))
         self.discovered_fit_ = self.family_fits_[same[0]] if same else fits[-1]
         if sys_fams:
-            base = self.family_fits_.get("bouc-wen-std") or family_fit_std(eq, fd)
+            if (base := self.family_fits_.get("bouc-wen-std")) is None:
+                say("stage 2: output-error fit of bouc-wen-std (the start of the system families)")
+                base = first_fit("bouc-wen-std")
             for name in sys_fams:
                 self.family_fits_[name] = self._system_fit(name, base, fd, say)
 
