@@ -41,11 +41,11 @@ import sys
 import threading
 import time
 import warnings
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Collection, Sequence
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
-from sklearn.base import BaseEstimator
+from sklearn.base import BaseEstimator, clone
 from threadpoolctl import threadpool_limits
 
 from hystdisc.closing import LoopResult, close_loop
@@ -53,6 +53,7 @@ from hystdisc.closing.again import compare_again
 from hystdisc.closing.reduction import Reduction
 from hystdisc.closing.reselect import Context, Reselection
 from hystdisc.closing.residual import NOISE_RATIO
+from hystdisc.closing.shift import shift_restart
 from hystdisc.data import (
     Dataset,
     distinct_currents,
@@ -120,9 +121,12 @@ def _stderr_printer() -> Callable[[str], None]:
     return say
 
 
-def _helper_families(fits: dict[str, OEFit], good_rms: float) -> dict[str, list[str]]:
-    """For each term family in ``fits`` above ``good_rms``, its related families
-    (``Family.start_from``, and theirs) that ``fits`` lacks: fitted as its starts only.
+def _helper_families(
+    fits: dict[str, OEFit], good_rms: float, poor: Collection[str] = ()
+) -> dict[str, list[str]]:
+    """For each term family in ``fits`` above ``good_rms`` (or named in ``poor``: at the
+    floor but not predicting held-out runs), its related families (``Family.start_from``,
+    and theirs) that ``fits`` lacks: fitted as its starts only.
 
     Examples
     --------
@@ -131,10 +135,12 @@ def _helper_families(fits: dict[str, OEFit], good_rms: float) -> dict[str, list[
     {'bouc-wen': ['bouc-wen-std', 'dahl', 'lugre']}
     >>> _helper_families({"bouc-wen": NS(rms=1.0, is_system=False)}, 1.1)
     {}
+    >>> _helper_families({"dahl": NS(rms=1.0, is_system=False)}, 1.1, poor={"dahl"})
+    {'dahl': ['lugre']}
     """
     out: dict[str, list[str]] = {}
     for name, fit in fits.items():
-        if name not in FAMILIES or fit.is_system or not fit.rms > good_rms:
+        if name not in FAMILIES or fit.is_system or not (fit.rms > good_rms or name in poor):
             continue
         found: list[str] = []
         todo = [name]
@@ -426,6 +432,31 @@ class Discovery(BaseEstimator):
             starts += random_starts(name, starts[0][1], extra, seed=self.seed)
         return starts
 
+    def _poor_predictions(
+        self, fd: FitData, good_rms: float, with_heldout: Callable[[str], OEFit]
+    ) -> dict[str, float]:
+        """The term families whose first fit is at the floor (``good_rms``) but whose
+        held-out error is above it: name -> held-out RMS.
+
+        Their held-out errors are computed here (``with_heldout``), not later, and kept
+        in ``family_fits_``; nothing is computed without held-out data (``heldout=False``
+        or a single run).
+        """
+        if not self.heldout or fd.n_runs < 2:
+            return {}
+        names = [
+            n
+            for n, f in self.family_fits_.items()
+            if n in FAMILIES and not f.is_system and f.rms <= good_rms
+        ]
+        self.family_fits_.update(zip(names, self._map(with_heldout, names), strict=True))
+        out = {}
+        for n in names:
+            h = self.family_fits_[n].heldout_rms
+            if h is not None and not h <= good_rms:  # a diverged fold (inf) counts too
+                out[n] = float(h)
+        return out
+
     def _system_fit(self, name: str, base: OEFit, fd: FitData, say) -> OEFit:
         """A system family from its starts mapped from ``base`` (:func:`system_fit`)."""
         fixed = {p: 0.0 for p in FAMILIES[name].current_params} if self.single_current_ else {}
@@ -594,7 +625,8 @@ class Discovery(BaseEstimator):
                 for k, reading in enumerate(readings):
                     label = f"{other}'s optimum" + (f" {k + 1}" if len(readings) > 1 else "")
                     pars.append((label, family_par(name, reading)))
-            good = NOISE_RATIO * fd.noise_std
+            # a first start at the floor that predicts poorly is not trusted (no good_rms)
+            good = None if name in poor else NOISE_RATIO * fd.noise_std
             return best_of_starts(
                 fd,
                 pars,
@@ -615,9 +647,13 @@ class Discovery(BaseEstimator):
         fits = self._map(family_fit, list(range(len(fams) + (0 if same else 1))))
         self.family_fits_: dict[str, OEFit] = dict(zip(fams, fits, strict=False))
         good = NOISE_RATIO * fd.noise_std
+        # a first fit at the floor that does not predict the held-out runs is no proof of
+        # the optimum: a seed-form Bouc-Wen at 1.009x the noise with n = 0.01 predicted
+        # them at 164x, where its true optimum (66 sigma^2 lower RSS) predicts them at 1x
+        poor = self._poor_predictions(fd, good, with_heldout) if self.n_starts > 1 else {}
         # a family above the floor whose related families were not asked for (a declared
         # family, a short --families list) gets them fitted too, as its starts only
-        helping = _helper_families(self.family_fits_, good) if self.n_starts > 1 else {}
+        helping = _helper_families(self.family_fits_, good, poor) if self.n_starts > 1 else {}
         helpers = list(dict.fromkeys(h for hs in helping.values() for h in hs))
         if helpers:
             say(f"stage 2: {', '.join(helpers)} fitted as starts (not compared)")
@@ -629,7 +665,7 @@ class Discovery(BaseEstimator):
         # from the best family, it may be the true one in a wrong basin (a Bingham release
         # on an encoder stopped at 4.9x LuGre's RMS from stage 1's start and reached the
         # floor from its current-levels start)
-        more = [n for n, f in self.family_fits_.items() if f.rms > good]
+        more = [n for n, f in self.family_fits_.items() if f.rms > good or n in poor]
         if self.n_starts > 1:
             if len(more) == 1:
                 # one family alone: its starts are screened on the threads (independent
@@ -642,6 +678,12 @@ class Discovery(BaseEstimator):
             # after the starts: a family still above the floor screens the mapped optima too
             self.family_fits_ = nesting_pass(
                 fd, self.family_fits_, self.max_nfev, say, screen_above=good
+            )
+        for name, heldout_rms in poor.items():
+            self.family_fits_[name].notes.append(
+                f"its first start fitted at the noise floor but predicted the held-out runs "
+                f"at RMS {heldout_rms:.4g} ({heldout_rms / fd.noise_std:.3g}x the noise): "
+                "a wrong basin can fit the data it saw, so its other starts were run too"
             )
         for name, hs in helping.items():  # the helpers' fits only served as starts
             self.family_fits_[name].notes.append(
@@ -687,14 +729,15 @@ class Discovery(BaseEstimator):
             )
         self.loop_: LoopResult | None = None
         if self.close_loop:
-            self.loop_ = self._close_loop(selected, eq, fd, say)
+            restart = shift_restart(dataset, self._fit_family, say)
+            self.loop_ = self._close_loop(selected, eq, fd, say, restart)
         self.reselection_: Reselection | None = None
         self.reduction_: Reduction | None = None
         bics = {n: f.bic for n, f in self.family_fits_.items()}
         # the staged laws belong to the selected family alone: no other family replaces it
         staged_changed = self.staged_ is not None and self.staged_.changed
         if self.model is None and len(fams) > 1 and not staged_changed and self.loop_ is not None:
-            close = lambda fit: self._close_loop(fit, eq, fd, say)  # noqa: E731
+            close = lambda fit: self._close_loop(fit, eq, fd, say, restart)  # noqa: E731
             ctx = Context(fd, eq, self.envelope_, close, self._stage1_shape, self.max_nfev,
                           self.heldout, self._map, say)  # fmt: skip
             again = compare_again({n: self.family_fits_[n] for n in fams}, self.family_,
@@ -730,7 +773,22 @@ class Discovery(BaseEstimator):
         self.results_ = build_results(self, dataset)
         return self
 
-    def _close_loop(self, selected: OEFit, eq: EqData, fd: FitData, say) -> LoopResult:
+    def _fit_family(self, dataset: Dataset, family: str) -> OEFit | None:
+        """``family`` fitted on ``dataset`` with this discovery's settings and all its
+        starts, without the loop (the offset's restart: :mod:`hystdisc.closing.shift`)."""
+        sub = clone(self).set_params(
+            model=family, close_loop=False, staged=False, ensemble=False, verbose=0
+        )
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                return sub.fit(dataset).selected_fit_
+        except (HystdiscError, np.linalg.LinAlgError, ValueError, FloatingPointError):
+            return None
+
+    def _close_loop(
+        self, selected: OEFit, eq: EqData, fd: FitData, say, restart=None
+    ) -> LoopResult:
         say("closing the loop: residual -> catalogued effects")
         return close_loop(
             selected,
@@ -744,6 +802,7 @@ class Discovery(BaseEstimator):
             envelope=self.envelope_,
             decided=self._decided_by_staged(),
             noise_samples=self.noise_.samples,
+            restart=restart,
         )
 
     def _select(self) -> tuple[str, str | None]:

@@ -331,6 +331,10 @@ class EffectTrial(Record):
         Why it was not accepted (absent when accepted).
     removed : bool
         Accepted, then dropped again by a later effect (absent unless so).
+    restarted : bool
+        The refit is the one restarted from the family fitted again on the shifted angle
+        (an offset refit that fitted better but did not predict:
+        :mod:`hystdisc.closing.shift`), which fitted better still (absent unless so).
     extra : dict
         Keys this version does not know (kept on a round trip).
     """
@@ -354,6 +358,7 @@ class EffectTrial(Record):
     excess_share: float | None = None
     note: str | None = None
     removed: bool = False
+    restarted: bool = False
     extra: dict[str, Any] = field(default_factory=dict, repr=False)
 
 

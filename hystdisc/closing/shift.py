@@ -1,0 +1,79 @@
+"""A restart for an effect that is a shift of the measured angle (the offset).
+
+The offset's torque ``k_s (theta - theta_off)`` is the family's own spring on the angle
+shifted by ``theta_off``. A refit of the model plus the offset starts from the optimum
+the missing offset distorted; it can end in a basin that fits the data it saw at the
+noise and predicts the held-out runs at three times the noise. :func:`shift_restart`
+gives the loop (:data:`~hystdisc.closing.loop.Restart`) another start that does not
+rely on that optimum: the family fitted again, with every start it has (stage 1, the
+related families' optima, the current levels), on the data shifted by the refit's
+``theta_off``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import replace
+
+import numpy as np
+
+from hystdisc.data import Dataset
+from hystdisc.fitting import OEFit
+
+#: Effects that are a shift of the measured angle, and the parameter that is the shift.
+SHIFT_PARAMS = {"offset": "theta_off"}
+
+
+def shifted(dataset: Dataset, shift: float) -> Dataset:
+    """``dataset`` with every run's angle shifted: ``theta - shift``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from hystdisc.data import Dataset, Run
+    >>> ds = Dataset([Run("0", np.arange(3) * 0.01, [0.3, 0.2, 0.1], 0.0)], "release")
+    >>> shifted(ds, 0.1).runs[0].theta.round(3).tolist()
+    [0.2, 0.1, 0.0]
+    """
+    runs = [replace(r, theta=r.theta - shift) for r in dataset.runs]
+    return replace(dataset, runs=runs)
+
+
+def shift_restart(
+    dataset: Dataset,
+    fit_family: Callable[[Dataset, str], OEFit | None],
+    say: Callable[[str], None] = lambda msg: None,
+) -> Callable[[str, OEFit], dict | None]:
+    """The loop's restart for the shift effects (:data:`SHIFT_PARAMS`).
+
+    Parameters
+    ----------
+    dataset : Dataset
+        The data of the discovery.
+    fit_family : callable
+        ``fit_family(dataset, family)``: the family fitted with all its starts (no loop),
+        or None when it fails.
+    say : callable
+        Progress messages.
+
+    Returns
+    -------
+    callable
+        ``restart(effect, refit)``: for a shift effect, the refit's parameters with the
+        family's own replaced by its fit on the shifted data (None for other effects, a
+        non-finite shift, another z scale, or a failed fit).
+    """
+
+    def restart(effect: str, refit: OEFit) -> dict | None:
+        key = SHIFT_PARAMS.get(effect)
+        shift = refit.params.get(key, np.nan) if key is not None else np.nan
+        if not np.isfinite(shift):
+            return None
+        name = refit.par.family.name
+        say(f"closing the loop: {name} fitted again on the angle shifted by {key} = {shift:.4g}")
+        fit = fit_family(shifted(dataset, shift), name)
+        if fit is None or getattr(fit.par, "norm", None) != getattr(refit.par, "norm", None):
+            return None  # another scale of z: its values do not read in the refit's
+        return {**refit.params, **fit.params, key: float(shift)}
+
+    return restart
