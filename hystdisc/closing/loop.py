@@ -310,7 +310,7 @@ class _Round:
         restart=None,
     ):
         self.data = data
-        #: ``restart(effect, params)`` (:data:`Restart`), or None
+        #: ``restart(effect, refit)`` (:data:`Restart`), or None
         self.restart = restart
         #: ``stage1(score)``: the stage-1 start of the current model plus the score's effect
         #: (made on first use), the fallback of a local refit; None without stage-1 data
