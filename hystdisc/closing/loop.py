@@ -354,9 +354,10 @@ class _Round:
             again = self.restart(s.name, new)
             if again is not None:
                 self.say(f"closing the loop: refit with {s.name} from the restarted family")
-                with np.errstate(all="ignore"):
-                    new2 = refit_with(
-                        self.data, cur, s.name, None, self.max_nfev, False, again, self.good_rms
+                par = cur.par.like(again, (*cur.par.effects, s.name))
+                with np.errstate(all="ignore"):  # the local starts ran above: this one alone
+                    new2 = OutputErrorFitter(self.data, par, max_nfev=self.max_nfev).fit(
+                        heldout=False
                     )
                 new2, step2 = self._judge(s, new2)
                 if step2["_ok"] and new2.bic < new.bic:
