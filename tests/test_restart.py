@@ -82,3 +82,27 @@ def test_an_offset_refit_that_does_not_predict_restarts_from_the_shifted_data(of
         lo, hi = ci[k]
         assert lo < v < hi, (k, v, lo, hi)
     assert not loop.unexplained
+
+
+def test_an_offset_the_base_fit_absorbed_is_refitted_from_its_stage1_value():
+    """At three current levels the base fit absorbs the offset (n = 9, 2.5 times the noise
+    in sample, 25 times held out), the offset's one-step evidence is nil and its stage-1
+    start of the augmented structure begins at 8 times the noise; stage 1 still gives
+    theta_off = 0.0300 (a linear term), and the family fitted again on the angle shifted
+    by it is the start that finds the offset."""
+    data = generate(
+        Model("bouc-wen", TRUTH, effects={"offset": {"theta_off": 0.03}}),
+        currents=(0, 0.5, 1), duration=3, noise=NOISE, seed=42,
+    )  # fmt: skip
+    d = Discovery(model="bouc-wen").fit(data)
+    loop = d.loop_
+    assert d.selected_fit_.rms > 2 * NOISE  # the precondition: the base fit absorbed it
+    assert loop.effects == ["offset"]
+    step = next(s for s in loop.tried if s["name"] == "offset")
+    assert step["accepted"] and step.get("restarted") is True
+    p, ci = loop.fit.params, loop.fit.ci95
+    assert abs(p["theta_off"] / 0.03 - 1.0) < 0.01
+    assert loop.fit.rms < 1.02 * NOISE and loop.fit.heldout_rms < 1.05 * NOISE
+    for k, v in NORMALIZED.items():
+        lo, hi = ci[k]
+        assert lo < v < hi, (k, v, lo, hi)

@@ -18,7 +18,7 @@ from dataclasses import replace
 import numpy as np
 
 from hystdisc.data import Dataset
-from hystdisc.fitting import OEFit
+from hystdisc.fitting import FamilyParametrization, OEFit
 
 #: Effects that are a shift of the measured angle, and the parameter that is the shift.
 SHIFT_PARAMS = {"offset": "theta_off"}
@@ -43,7 +43,7 @@ def shift_restart(
     dataset: Dataset,
     fit_family: Callable[[Dataset, str], OEFit | None],
     say: Callable[[str], None] = lambda msg: None,
-) -> Callable[[str, OEFit], dict | None]:
+) -> Callable[[str, dict, FamilyParametrization], dict | None]:
     """The loop's restart for the shift effects (:data:`SHIFT_PARAMS`).
 
     Parameters
@@ -59,21 +59,29 @@ def shift_restart(
     Returns
     -------
     callable
-        ``restart(effect, refit)``: for a shift effect, the refit's parameters with the
-        family's own replaced by its fit on the shifted data (None for other effects, a
-        non-finite shift, another z scale, or a failed fit).
+        ``restart(effect, values, par)`` (:data:`~hystdisc.closing.loop.Restart`): for a
+        shift effect, ``values`` with the family's own replaced by its fit on the data
+        shifted by the effect's value; None for other effects, a shift that is 0 or not
+        finite, another z scale than ``par``'s, or a failed fit. One fit per family and
+        shift (rounded to 4 digits).
     """
+    made: dict[tuple[str, float], OEFit | None] = {}
 
-    def restart(effect: str, refit: OEFit) -> dict | None:
+    def restart(effect: str, values: dict, par: FamilyParametrization) -> dict | None:
         key = SHIFT_PARAMS.get(effect)
-        shift = refit.params.get(key, np.nan) if key is not None else np.nan
-        if not np.isfinite(shift):
+        shift = float(values.get(key, np.nan)) if key is not None else np.nan
+        if not np.isfinite(shift) or shift == 0.0:
             return None
-        name = refit.par.family.name
-        say(f"closing the loop: {name} fitted again on the angle shifted by {key} = {shift:.4g}")
-        fit = fit_family(shifted(dataset, shift), name)
-        if fit is None or getattr(fit.par, "norm", None) != getattr(refit.par, "norm", None):
-            return None  # another scale of z: its values do not read in the refit's
-        return {**refit.params, **fit.params, key: float(shift)}
+        name = par.family.name
+        memo = (name, float(f"{shift:.4g}"))
+        if memo not in made:
+            say(
+                f"closing the loop: {name} fitted again on the angle shifted by {key} = {shift:.4g}"
+            )
+            made[memo] = fit_family(shifted(dataset, shift), name)
+        fit = made[memo]
+        if fit is None or getattr(fit.par, "norm", None) != getattr(par, "norm", None):
+            return None  # another scale of z: its values do not read in the model's
+        return {**values, **fit.params, key: shift}
 
     return restart

@@ -332,9 +332,10 @@ class EffectTrial(Record):
     removed : bool
         Accepted, then dropped again by a later effect (absent unless so).
     restarted : bool
-        The refit is the one restarted from the family fitted again on the shifted angle
-        (an offset refit that fitted better but did not predict:
-        :mod:`hystdisc.closing.shift`), which fitted better still (absent unless so).
+        The refit had a start from the family fitted again on the shifted angle (the
+        offset's, from its stage-1 value or from a refit that fitted better but did not
+        predict: :mod:`hystdisc.closing.shift`), and is the better for it (absent unless
+        so).
     extra : dict
         Keys this version does not know (kept on a round trip).
     """
