@@ -729,7 +729,7 @@ class Discovery(BaseEstimator):
             )
         self.loop_: LoopResult | None = None
         if self.close_loop:
-            restart = shift_restart(dataset, self._fit_family, say)
+            restart = shift_restart(dataset, self._fit_family, say, min_shift=fd.noise_std)
             self.loop_ = self._close_loop(selected, eq, fd, say, restart)
         self.reselection_: Reselection | None = None
         self.reduction_: Reduction | None = None

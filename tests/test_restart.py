@@ -106,3 +106,29 @@ def test_an_offset_the_base_fit_absorbed_is_refitted_from_its_stage1_value():
     for k, v in NORMALIZED.items():
         lo, hi = ci[k]
         assert lo < v < hi, (k, v, lo, hi)
+
+
+def test_the_restart_fits_a_family_once_per_shift_and_only_for_a_shift_above_the_floor():
+    from types import SimpleNamespace as NS
+
+    from hystdisc.closing.shift import shift_restart
+
+    data = generate(Model("dahl"), currents=(0, 1), duration=0.5, noise=0.0, seed=1)
+    calls = []
+
+    def fit_family(ds, family):
+        calls.append((family, round(float(data.runs[0].theta[0] - ds.runs[0].theta[0]), 6)))
+        return NS(params={"k_x": 1.0, "k_s": 150.0}, par=NS(norm="z_sat"))
+
+    restart = shift_restart(data, fit_family, min_shift=1e-3)
+    par = NS(family=NS(name="dahl"), norm="z_sat")
+    values = {"k_x": 0.5, "k_s": 140.0, "theta_off": 0.02, "J": 1.0}
+    assert restart("cubic_stiffness", {"k_3": 5.0}, par) is None  # not a shift
+    assert restart("offset", {**values, "theta_off": 5e-4}, par) is None  # below the floor
+    assert restart("offset", {**values, "theta_off": np.nan}, par) is None
+    assert calls == []
+    start = restart("offset", values, par)
+    assert start == {"k_x": 1.0, "k_s": 150.0, "theta_off": 0.02, "J": 1.0}
+    assert restart("offset", values, par) == start and calls == [("dahl", 0.02)]  # once
+    # a fit in another scale of z does not read in the model's
+    assert restart("offset", values, NS(family=NS(name="dahl"), norm="alpha_1")) is None

@@ -43,6 +43,7 @@ def shift_restart(
     dataset: Dataset,
     fit_family: Callable[[Dataset, str], OEFit | None],
     say: Callable[[str], None] = lambda msg: None,
+    min_shift: float = 0.0,
 ) -> Callable[[str, dict, FamilyParametrization], dict | None]:
     """The loop's restart for the shift effects (:data:`SHIFT_PARAMS`).
 
@@ -55,22 +56,25 @@ def shift_restart(
         or None when it fails.
     say : callable
         Progress messages.
+    min_shift : float
+        Smaller shifts are not restarted from (e.g. the noise of the angle: a base fit
+        cannot be bent by an offset it cannot see).
 
     Returns
     -------
     callable
         ``restart(effect, values, par)`` (:data:`~hystdisc.closing.loop.Restart`): for a
         shift effect, ``values`` with the family's own replaced by its fit on the data
-        shifted by the effect's value; None for other effects, a shift that is 0 or not
-        finite, another z scale than ``par``'s, or a failed fit. One fit per family and
-        shift (rounded to 4 digits).
+        shifted by the effect's value; None for other effects, a shift not above
+        ``min_shift`` or not finite, another z scale than ``par``'s, or a failed fit.
+        One fit per family and shift (rounded to 4 digits).
     """
     made: dict[tuple[str, float], OEFit | None] = {}
 
     def restart(effect: str, values: dict, par: FamilyParametrization) -> dict | None:
         key = SHIFT_PARAMS.get(effect)
         shift = float(values.get(key, np.nan)) if key is not None else np.nan
-        if not np.isfinite(shift) or shift == 0.0:
+        if not (np.isfinite(shift) and abs(shift) > min_shift):
             return None
         name = par.family.name
         memo = (name, float(f"{shift:.4g}"))
