@@ -89,6 +89,7 @@ from hystdisc.fitting.multistart import (
     random_starts,
     system_fit,
 )
+from hystdisc.fitting.parametrization import in_torque_units
 from hystdisc.fitting.prepare import prepare_data
 from hystdisc.fitting.selection import select_family
 from hystdisc.fitting.staged import levels_start
@@ -165,18 +166,9 @@ def _normalization(name: str, start: dict[str, float]) -> tuple[dict[str, float]
     if not name.startswith("bouc-wen"):
         return start, "z_sat"
     zs = fam.z_sat(start["delta"], start["beta"], start["gamma"], start["n"])
-    a = start.get("alpha_1", 0.0)
     if np.isfinite(zs) and zs > 0:
         return start, "z_sat"
-    q = dict(start)
-    if np.isfinite(a) and a > 0:
-        n = start["n"]
-        q["delta"] = start["delta"] * a
-        q["beta"] = start["beta"] * a ** (1.0 - n)
-        q["gamma"] = start["gamma"] * a ** ((1.0 - n) if name == "bouc-wen-std" else -n)
-        q["alpha_2"] = start.get("alpha_2", 0.0) / a
-    q["alpha_1"] = 1.0
-    return q, "alpha_1"
+    return in_torque_units(name, start), "alpha_1"
 
 
 class Discovery(BaseEstimator):

@@ -130,5 +130,40 @@ def test_the_restart_fits_a_family_once_per_shift_and_only_for_a_shift_above_the
     start = restart("offset", values, par)
     assert start == {"k_x": 1.0, "k_s": 150.0, "theta_off": 0.02, "J": 1.0}
     assert restart("offset", values, par) == start and calls == [("dahl", 0.02)]  # once
-    # a fit in another scale of z does not read in the model's
-    assert restart("offset", values, NS(family=NS(name="dahl"), norm="alpha_1")) is None
+    # a fit in torque units (alpha_1 = 1) does not read in a model in z_sat units
+    alpha1 = shift_restart(data, lambda ds, f: NS(params={"k_s": 1.0}, par=NS(norm="alpha_1")))
+    assert alpha1("offset", values, par) is None
+    # a fit in z_sat units is rescaled for a model in torque units
+    bw = {"alpha_1": 2.0, "alpha_2": 1.0, "delta": 3.0, "beta": 2.0, "gamma": 1.0, "n": 1.0}
+    zsat = shift_restart(data, lambda ds, f: NS(params={**bw, "k_s": 150.0}, par=NS(norm="z_sat")))
+    start = zsat("offset", {"theta_off": 0.02}, NS(family=NS(name="bouc-wen"), norm="alpha_1"))
+    assert start["alpha_1"] == 1.0 and start["delta"] == 6.0 and start["alpha_2"] == 0.5
+    assert start["k_s"] == 150.0 and start["theta_off"] == 0.02
+
+
+def test_an_offset_restart_in_z_sat_units_reads_in_a_base_fit_in_torque_units(tmp_path):
+    """A random draw of ``benchmarks/offset_restart.py`` (bouc-wen set 11, 3 levels): the
+    base fit, bent by the offset, has loops that never saturate (beta, gamma ~ 0: z in
+    torque units, 8 times the noise, 163 times held out); the family fitted again on the
+    shifted angle saturates (z_sat = 1) and is rescaled to the base fit's units."""
+    sets = "alpha_1=0.337937,alpha_2=0.871918,c_1=0.642987,c_2=0.481218,beta=8.57271,"
+    sets += "gamma=12.0824,delta=31.5427,n=0.59402,k_s=160.285"
+    argv = [
+        "simulate",
+        "--model",
+        "bouc-wen",
+        "--set",
+        sets,
+        "--effect",
+        "offset:theta_off=0.02507",
+    ]
+    argv += ["--currents", "0,0.5,1", "--duration", "3", "--noise", str(NOISE)]
+    argv += ["--seed", "864066292", "-o", str(tmp_path / "off.csv"), "--quiet"]
+    assert main(argv) == 0
+    d = Discovery(model="bouc-wen").fit(load(tmp_path / "off.csv"))
+    assert d.selected_fit_.par.norm == "alpha_1"  # the precondition: a base in torque units
+    loop = d.loop_
+    assert loop.effects == ["offset"]
+    lo, hi = loop.fit.ci95["theta_off"]
+    assert lo < 0.02507 < hi
+    assert loop.fit.heldout_rms < 1.05 * NOISE

@@ -19,6 +19,7 @@ import numpy as np
 
 from hystdisc.data import Dataset
 from hystdisc.fitting import FamilyParametrization, OEFit
+from hystdisc.fitting.parametrization import in_torque_units
 
 #: Effects that are a shift of the measured angle, and the parameter that is the shift.
 SHIFT_PARAMS = {"offset": "theta_off"}
@@ -65,9 +66,11 @@ def shift_restart(
     callable
         ``restart(effect, values, par)`` (:data:`~hystdisc.closing.loop.Restart`): for a
         shift effect, ``values`` with the family's own replaced by its fit on the data
-        shifted by the effect's value; None for other effects, a shift not above
-        ``min_shift`` or not finite, another z scale than ``par``'s, or a failed fit.
-        One fit per family and shift (rounded to 4 digits).
+        shifted by the effect's value (rescaled to torque units when ``par`` has z in
+        them: :func:`~hystdisc.fitting.parametrization.in_torque_units`). None for other
+        effects, a shift not above ``min_shift`` or not finite, a failed fit, or a fit
+        in torque units for a model in z_sat units. One fit per family and shift
+        (rounded to 4 digits).
     """
     made: dict[tuple[str, float], OEFit | None] = {}
 
@@ -84,8 +87,14 @@ def shift_restart(
             )
             made[memo] = fit_family(shifted(dataset, shift), name)
         fit = made[memo]
-        if fit is None or getattr(fit.par, "norm", None) != getattr(par, "norm", None):
-            return None  # another scale of z: its values do not read in the model's
-        return {**values, **fit.params, key: shift}
+        if fit is None:
+            return None
+        own = dict(fit.params)
+        norm = getattr(par, "norm", None)
+        if getattr(fit.par, "norm", None) != norm:
+            if norm != "alpha_1":
+                return None  # a loop that never saturates has no z_sat to rescale to
+            own = in_torque_units(name, own)  # the model's z is in torque units
+        return {**values, **own, key: shift}
 
     return restart

@@ -410,3 +410,30 @@ def family_parametrization(
         else FamilyParametrization
     )
     return cls(family, experiment, start, tuple(effects), fixed, normalization, laws)
+
+
+def in_torque_units(family: str, params: dict[str, float]) -> dict[str, float]:
+    """``params`` of a Bouc-Wen form with z rescaled to torque units (``alpha_1 = 1``).
+
+    The same model: z is multiplied by ``a = alpha_1``, so ``delta``, ``beta`` and
+    ``gamma`` take the powers of ``a`` their terms carry and ``alpha_2`` is divided by it
+    (the ``alpha_1`` normalization of :class:`FamilyParametrization`). Parameters without
+    a positive ``alpha_1`` get ``alpha_1 = 1`` alone.
+
+    Examples
+    --------
+    >>> p = {"alpha_1": 2.0, "alpha_2": 1.0, "delta": 3.0, "beta": 2.0, "gamma": 1.0, "n": 1.0}
+    >>> q = in_torque_units("bouc-wen", p)
+    >>> q["alpha_1"], q["alpha_2"], q["delta"], q["beta"], q["gamma"]
+    (1.0, 0.5, 6.0, 2.0, 0.5)
+    """
+    q = dict(params)
+    a = params.get("alpha_1", 0.0)
+    if np.isfinite(a) and a > 0:
+        n = params["n"]
+        q["delta"] = params["delta"] * a
+        q["beta"] = params["beta"] * a ** (1.0 - n)
+        q["gamma"] = params["gamma"] * a ** ((1.0 - n) if family == "bouc-wen-std" else -n)
+        q["alpha_2"] = params.get("alpha_2", 0.0) / a
+    q["alpha_1"] = 1.0
+    return q
