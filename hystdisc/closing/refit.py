@@ -44,11 +44,15 @@ def has_spring(fit: OEFit) -> bool:
     Returns
     -------
     bool
-        ``k_s > 0`` and the lower end of its 95 % interval above 0.
+        ``k_s > 0`` and the lower end of its 95 % interval above 0, or no finite lower
+        end: along a direction the data leave flat (a base fit bent by a missing offset
+        into a degenerate optimum) ``k_s`` is undetermined, not shown to be 0.
     """
     ks = fit.params.get("k_s", 0.0)
     lo = fit.ci95.get("k_s", (0.0, 0.0))[0]
-    return bool(np.isfinite(ks) and ks > 0.0 and np.isfinite(lo) and lo > 0.0)
+    if lo is None or not np.isfinite(lo):
+        lo = np.inf  # undetermined: the value decides
+    return bool(np.isfinite(ks) and ks > 0.0 and lo > 0.0)
 
 
 def candidate_effects(fit: OEFit, data: FitData) -> tuple[list[str], list[dict]]:
