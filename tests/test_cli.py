@@ -132,3 +132,36 @@ def test_a_bug_is_one_line_with_its_own_exit_code(monkeypatch, capsys):
     monkeypatch.setenv("HYSTDISC_TRACEBACK", "1")
     with pytest.raises(ZeroDivisionError):
         main(["simulate", "--model", "dahl", "-o", "x.csv"])
+
+
+def _console(args: list[str], cwd: Path) -> subprocess.CompletedProcess:
+    """``python -m hystdisc ARGS`` (the console entry, :func:`hystdisc.cli.console`)."""
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]),
+    }
+    return subprocess.run(
+        [sys.executable, "-m", "hystdisc", *args],
+        capture_output=True,
+        text=True,
+        env=env,
+        cwd=cwd,
+        check=False,
+    )
+
+
+def test_the_console_entry_keeps_exit_codes_and_flushes_what_it_wrote(tmp_path):
+    # it ends the process with os._exit: the status, the piped output and the files
+    # written must all survive that
+    version = _console(["--version"], tmp_path)
+    assert (version.returncode, version.stdout) == (0, f"hystdisc {hystdisc.__version__}\n")
+    usage = _console(["simulate", "--no-such-option"], tmp_path)
+    assert usage.returncode == 2
+    assert usage.stderr.startswith("hystdisc: error: hystdisc: unrecognized arguments:")
+    missing = _console(["discover", "missing.csv"], tmp_path)
+    assert missing.returncode == 2 and "missing.csv" in missing.stderr
+    made = _console(["simulate", "--model", "dahl", "--duration", "1", "-o", "d.csv"], tmp_path)
+    assert made.returncode == 0, made.stderr
+    assert made.stdout.endswith("\n") and "d.csv" in made.stdout
+    rows = (tmp_path / "d.csv").read_text().splitlines()
+    assert rows[0].split(",")[0] == "run" and len(rows) > 1000
