@@ -27,6 +27,14 @@ HEAVY = ("numpy", "numba", "scipy", "sklearn", "pysindy", "matplotlib")
 ROOT = Path(hystdisc.__file__).resolve().parent.parent
 
 
+def _env() -> dict[str, str]:
+    """The environment of a child interpreter that imports this checkout's hystdisc."""
+    return {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]),
+    }
+
+
 def _heavy_modules(code: str) -> list[str]:
     """Run ``code`` in a fresh interpreter; the heavy modules it left imported."""
     script = (
@@ -36,15 +44,11 @@ def _heavy_modules(code: str) -> list[str]:
         "import json\n"
         "print(json.dumps(sorted(m for m in sys.modules if m.split('.')[0] in heavy)))\n"
     )
-    env = {
-        **os.environ,
-        "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]),
-    }
     out = subprocess.run(
         [sys.executable, "-c", script],
         capture_output=True,
         text=True,
-        env=env,
+        env=_env(),
         cwd=ROOT,
         check=True,
     )
@@ -136,15 +140,11 @@ def test_a_bug_is_one_line_with_its_own_exit_code(monkeypatch, capsys):
 
 def _console(args: list[str], cwd: Path) -> subprocess.CompletedProcess:
     """``python -m hystdisc ARGS`` (the console entry, :func:`hystdisc.cli.console`)."""
-    env = {
-        **os.environ,
-        "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]),
-    }
     return subprocess.run(
         [sys.executable, "-m", "hystdisc", *args],
         capture_output=True,
         text=True,
-        env=env,
+        env=_env(),
         cwd=cwd,
         check=False,
     )
