@@ -106,6 +106,35 @@ def test_a_damper_effect_found_on_the_wrong_form_is_carried_to_the_right_one(tmp
     assert abs(fit.params["n"] / 2.3 - 1) < 0.05  # the standard form's own exponent
 
 
+def test_the_loops_final_model_stands_for_its_family_when_its_refit_fits_worse(monkeypatch):
+    # the loop reached bouc-wen + offset from a restart (held-out 1e-3); the family's refit
+    # with the offset from its own starts stopped in a worse basin (3e-3) and would have
+    # handed the comparison to lugre (1.05e-3)
+    from types import SimpleNamespace as NS
+
+    import hystdisc.closing.reselect as rs
+
+    def fit(bic, heldout, n_params=10):
+        par = NS(effects=("offset",))
+        return NS(bic=bic, heldout_rms=heldout, n_params=n_params, par=par, term_part=None)
+
+    final = fit(-1000.0, 1.0e-3)
+    final.params, final.term_part = {"theta_off": 0.03}, NS(torque={})
+    refits = {"bouc-wen": fit(-900.0, 3.0e-3), "lugre": fit(-950.0, 1.05e-3, n_params=9)}
+    monkeypatch.setattr(rs, "refit_families", lambda *args, **kw: dict(refits))
+    monkeypatch.setattr(rs, "check_admissible", lambda *args: NS(ok=True, violations=[]))
+    closed = []
+    ctx = rs.Context(NS(), None, None, closed.append, lambda f: None)
+    res = rs.reselect(dict.fromkeys(refits), "bouc-wen", NS(fit=final), ["offset"], ctx)
+    assert res.fits["bouc-wen"] is final and res.pick == "bouc-wen" and closed == []
+    assert res.note == "with offset in every family, bouc-wen is still selected"
+    # a loop whose final model fits worse than the refit does not replace it
+    final.bic = -800.0
+    refits["bouc-wen"] = fit(-1100.0, 1.0e-3)
+    res = rs.reselect(dict.fromkeys(refits), "bouc-wen", NS(fit=final), ["offset"], ctx)
+    assert res.fits["bouc-wen"] is refits["bouc-wen"] and res.pick == "bouc-wen"
+
+
 def test_the_record_says_what_was_compared(base):
     fits = {n: base.family_fits_[n] for n in ("dahl", "bouc-wen")}
     res = Reselection(["offset"], fits, {"dahl": True, "bouc-wen": True}, "dahl", "bouc-wen")

@@ -13,8 +13,11 @@ exact Jacobians, a Coulomb friction to trim the form's misfit).
 When the loop accepts effects with a term form, :func:`reselect` has every family fitted
 with those it can carry (:func:`refit_families`: from stage 1's start of family plus
 effects and from the family's own optimum with the effects at the loop's values, each
-judged on held-out data) and picks one by the family table's rule
-(:func:`~hystdisc.fitting.selection.select_family`: admissible, held-out error, BIC);
+judged on held-out data; the loop's own final model stands for the selected family when
+it fits better than that family's refit, since the loop may have reached it from more
+starts, e.g. an offset restarted on the shifted angle) and picks one by the family
+table's rule (:func:`~hystdisc.fitting.selection.select_family`: admissible, held-out
+error, BIC);
 when that is another family, the loop is closed again from that family's fit, and the
 switch is kept only when the same rule, applied to the two final models, selects the new
 one (:class:`Reselection` records both). A structural effect (a compliant wheel)
@@ -230,8 +233,9 @@ def reselect(
 ) -> Reselection:
     """Compare the families again with the ``effects`` the loop accepted on ``before``.
 
-    Every family is refitted with them (:func:`refit_families`) and the usual rule picks
-    one (:func:`~hystdisc.fitting.selection.select_family`). When that is another family,
+    Every family is refitted with them (:func:`refit_families`; ``before``'s refit gives
+    way to ``loop``'s final model when that has the same effects and a lower BIC) and the
+    usual rule picks one (:func:`~hystdisc.fitting.selection.select_family`). When that is another family,
     the loop is closed again from its fit (``ctx.close``), and the switch is made
     (``switched``) only when the same rule, applied to the new final model and ``loop``'s,
     selects the new one and it is admissible.
@@ -260,6 +264,16 @@ def reselect(
     say(f"selection again: every family with {names}")
     fits = refit_families(family_fits, effects, ctx.data, ctx.eq, values, ctx.shapes,
                           ctx.max_nfev, ctx.heldout, ctx.mapper)  # fmt: skip
+    # the loop's final model is a fit of ``before`` with these effects too, and the loop
+    # may have reached it from more starts (an offset restarted on the shifted angle):
+    # the family's refit from its own starts must not stand for it when it fits worse
+    own = fits[before]
+    if (
+        type(final.par) is type(own.par)
+        and set(final.par.effects) == set(own.par.effects)
+        and final.bic < own.bic
+    ):
+        fits[before] = final
     adm = {n: check_admissible(f.term_part, envelope) for n, f in fits.items()}
     pick, _ = select_family(fits, adm)
     res = Reselection(list(effects), fits, {n: a.ok for n, a in adm.items()}, before, pick)
