@@ -235,10 +235,10 @@ def reselect(
 
     Every family is refitted with them (:func:`refit_families`; ``before``'s refit gives
     way to ``loop``'s final model when that has the same effects and a lower BIC) and the
-    usual rule picks one (:func:`~hystdisc.fitting.selection.select_family`). When that is another family,
-    the loop is closed again from its fit (``ctx.close``), and the switch is made
-    (``switched``) only when the same rule, applied to the new final model and ``loop``'s,
-    selects the new one and it is admissible.
+    usual rule picks one (:func:`~hystdisc.fitting.selection.select_family`). When that
+    is another family, the loop is closed again from its fit (``ctx.close``), and the
+    switch is made (``switched``) only when the same rule, applied to the new final model
+    and ``loop``'s, selects the new one and it is admissible.
 
     Parameters
     ----------
