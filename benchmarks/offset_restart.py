@@ -9,6 +9,10 @@ FAMILY`` with default settings. Success: the final model is the family plus ``of
 and nothing else, the true ``theta_off`` inside its 95 % interval, and the held-out RMS
 within 10 % of the noise.
 
+With ``--undeclared`` the family is not declared (``hystdisc discover`` compares the
+families, and the reselection compares them again with the accepted effects): success
+also needs the true family selected.
+
 Run:  python benchmarks/offset_restart.py --sets 3 --jobs 2 --out benchmarks/results/offset_restart.md
 """
 
@@ -45,7 +49,7 @@ def draw_offset(family: str, index: int) -> float:
     return float(f"{size * rng.choice([-1.0, 1.0]):.4g}")
 
 
-def run_case(family: str, index: int, layout: str, work: Path) -> dict:
+def run_case(family: str, index: int, layout: str, work: Path, declared: bool = True) -> dict:
     params, _ = sample_set(family, index, duration=3.0)
     off = draw_offset(family, index)
     name = f"{family}/{index}/{layout.split()[0]}"
@@ -62,7 +66,8 @@ def run_case(family: str, index: int, layout: str, work: Path) -> dict:
     sim += ["--effect", f"offset:theta_off={off!r}", "--currents", LAYOUTS[layout]]
     sim += ["--duration", "3", "--noise", repr(NOISE), "--seed", str(seed)]
     sim += ["-o", str(csv), "--force", "--quiet"]
-    disc = ["discover", str(csv), "--model", family, "--json", str(out), "--force", "--quiet"]
+    disc = ["discover", str(csv), "--json", str(out), "--force", "--quiet"]
+    disc += ["--model", family] if declared else []
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     t0 = time.perf_counter()
     for args in (sim, disc):
@@ -82,6 +87,7 @@ def run_case(family: str, index: int, layout: str, work: Path) -> dict:
     rec = {
         "case": name,
         "theta_off": off,
+        "family": final.get("family"),
         "effects": effects,
         "theta_off_fit": p.get("theta_off"),
         "inside": bool(lo < off < hi),
@@ -90,7 +96,14 @@ def run_case(family: str, index: int, layout: str, work: Path) -> dict:
         "restarted": bool(tried.get("offset", {}).get("restarted")),
         "seconds": round(time.perf_counter() - t0, 1),
     }
-    rec["success"] = bool(effects == ["offset"] and rec["inside"] and rec["heldout_ratio"] <= 1.1)
+    rec["success"] = bool(
+        rec["family"] == family
+        and effects == ["offset"]
+        and rec["inside"]
+        and rec["heldout_ratio"] <= 1.1
+    )
+    if not declared:
+        rec["reselection"] = (res.get("reselection") or {}).get("note")
     return rec
 
 
@@ -101,6 +114,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--first-set", type=int, default=0)
     ap.add_argument("--jobs", type=int, default=1)
     ap.add_argument("--out", type=Path, default=None, help="markdown table (default: stdout)")
+    ap.add_argument("--undeclared", action="store_true", help="compare the families (no --model)")
     a = ap.parse_args(argv)
     work = Path(tempfile.mkdtemp(prefix="offset_restart_"))
     cases = [
@@ -111,7 +125,7 @@ def main(argv: list[str] | None = None) -> int:
     ]
     t0 = time.perf_counter()
     with ThreadPoolExecutor(max_workers=a.jobs) as pool:
-        recs = list(pool.map(lambda c: run_case(*c, work), cases))
+        recs = list(pool.map(lambda c: run_case(*c, work, declared=not a.undeclared), cases))
     for r in recs:
         print(r["case"], "ok" if r.get("success") else "FAIL", r, file=sys.stderr)
     commit = subprocess.run(
@@ -119,26 +133,33 @@ def main(argv: list[str] | None = None) -> int:
     ).stdout.strip()
     ok = sum(bool(r.get("success")) for r in recs)
     lines = [
-        "# Declared family with an offset: is `offset` found? (issue 16)",
+        f"# {'Undeclared' if a.undeclared else 'Declared'} family with an offset: is `offset` "
+        "found? (issue 16)",
         "",
         f"Command: `python benchmarks/offset_restart.py --families {a.families} --sets {a.sets} "
-        f"--first-set {a.first_set} --jobs {a.jobs}`  ",
+        f"--first-set {a.first_set} --jobs {a.jobs}{' --undeclared' if a.undeclared else ''}`  ",
         f"Commit: {commit}; wall time {time.perf_counter() - t0:.0f} s; {len(recs)} cases; "
         f"success {ok}/{len(recs)}.",
         "",
-        "| case | theta_off | final effects | fitted theta_off | truth inside | RMS/noise | held-out/noise | restarted | ok |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "| case | theta_off | final family | final effects | fitted theta_off | truth inside | RMS/noise | held-out/noise | restarted | ok |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in recs:
         if "error" in r:
-            lines.append(f"| {r['case']} | {r['theta_off']} | error: {r['error']} | | | | | | no |")
+            lines.append(
+                f"| {r['case']} | {r['theta_off']} | error: {r['error']} | | | | | | | no |"
+            )
             continue
         fit = "-" if r["theta_off_fit"] is None else f"{r['theta_off_fit']:.4g}"
         lines.append(
-            f"| {r['case']} | {r['theta_off']} | {', '.join(r['effects']) or '-'} | {fit} | "
+            f"| {r['case']} | {r['theta_off']} | {r['family']} | {', '.join(r['effects']) or '-'} "
+            f"| {fit} | "
             f"{'yes' if r['inside'] else 'no'} | {r['rms_ratio']:.3f} | {r['heldout_ratio']:.3f} | "
             f"{'yes' if r['restarted'] else ''} | {'yes' if r['success'] else 'no'} |"
         )
+    notes = [f"- {r['case']}: {r['reselection']}" for r in recs if r.get("reselection")]
+    if notes:
+        lines += ["", "Reselection notes (results.json `reselection.note`):", "", *notes]
     text = "\n".join(lines) + "\n"
     if a.out:
         a.out.write_text(text)
