@@ -357,10 +357,9 @@ class _Round:
         if restarted:
             step["restarted"] = True
         fits_only = step["_improves"] and step["_significant"] and step["admissible"]
-        if fits_only and not step["_predicts"] and self._may_restart(s.name):
-            again = self.restart(s.name, dict(new.params), cur.par)
+        if fits_only and not step["_predicts"]:
+            again = self._restart_start(s.name, dict(new.params), cur.par)
             if again is not None:
-                self.restarted.add(s.name)
                 self.say(f"closing the loop: refit with {s.name} from the restarted family")
                 par = cur.par.like(again, (*cur.par.effects, s.name))
                 with np.errstate(all="ignore"):  # the local starts ran above: this one alone
@@ -434,8 +433,15 @@ class _Round:
         step["_predicts"] = hb is None or (ha is not None and ha < hb)
         return new, step
 
-    def _may_restart(self, name: str) -> bool:
-        return self.restart is not None and name not in self.restarted
+    def _restart_start(self, name: str, values: dict, par) -> dict | None:
+        """:attr:`restart`'s start for ``name`` from ``values`` of a model ``par``, once
+        per effect and round (None when there is no restart, it was used, or it has none)."""
+        if self.restart is None or name in self.restarted:
+            return None
+        again = self.restart(name, values, par)
+        if again is not None:
+            self.restarted.add(name)
+        return again
 
     def best(self) -> tuple[OEFit, dict] | None:
         """The acceptable refit with the lowest BIC (better in BIC, significant, better on
@@ -466,12 +472,11 @@ class _Round:
         # the offset's own start far (8 times the noise at a 3-level set whose stage 1
         # gives theta_off = 0.0300 against the true 0.03)
         for s in scores:
-            if s.start is None or not self._may_restart(s.name):
-                continue
-            again = self.restart(s.name, s.start, self.current.par)
+            again = (
+                None if s.start is None else self._restart_start(s.name, s.start, self.current.par)
+            )
             if again is None:
                 continue
-            self.restarted.add(s.name)
             self.attempt(s, start=again, restarted=True)
             if self.done():
                 return
