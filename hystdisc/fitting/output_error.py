@@ -8,8 +8,11 @@ of a model in term form is exact: the compiled kernels integrate the forward sen
 of the output with respect to each run's term vector and initial state in the same pass as
 the output (:func:`~hystdisc.fitting.simulate.simulate_sensitivities`), and the chain rule
 through the (cheap) map from the free parameters to the term vectors gives the columns. A
-state-space model's Jacobian, a diverged simulation's and, on request (:data:`JACOBIAN`,
-``jacobian_mode``), any model's are forward differences, all columns in one batched
+state-space model with compiled partial derivatives (Spencer's family) gets its exact
+Jacobian the same way from the error-controlled integrator
+(:mod:`~hystdisc.fitting.system_sensitivity`). Any other state-space model's Jacobian, a
+diverged simulation's and, on request (:data:`JACOBIAN`, ``jacobian_mode``), any model's
+are forward differences, all columns in one batched
 simulation call (a run's nuisance parameters only touch that run, so only that run is
 re-simulated).
 
@@ -30,6 +33,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from hystdisc.errors import HystdiscError
+from hystdisc.fitting import system_sensitivity
 from hystdisc.fitting.data import FitData
 from hystdisc.fitting.jacobian import difference_jacobian, exact_jacobian
 from hystdisc.fitting.lm import levenberg_marquardt
@@ -173,8 +177,10 @@ class OutputErrorFitter:
         Relative step of the forward differences (and of a channel delay's column).
     jacobian_mode : {"exact", "forward"}, optional
         How :meth:`jacobian` is computed (default :data:`JACOBIAN`): ``"exact"`` uses the
-        forward sensitivities of the term kernels for a model in term form (forward
-        differences for a state-space model), ``"forward"`` forward differences always.
+        forward sensitivities of the term kernels for a model in term form and of the
+        error-controlled integrator for a state-space model with compiled partial
+        derivatives (forward differences for any other), ``"forward"`` forward
+        differences always.
     """
 
     def __init__(
@@ -195,6 +201,9 @@ class OutputErrorFitter:
         self.jacobian_mode = mode
         #: The Jacobian is taken from the kernels' sensitivities (a term-form model).
         self.exact = mode == "exact" and not isinstance(par, SystemParametrization)
+        #: The Jacobian is the integrator's sensitivities (a state-space model with
+        #: compiled partial derivatives).
+        self.exact_system = mode == "exact" and system_sensitivity.applies(par)
         self.npar = len(par.names)
         self.state = par.has_state()
         self.nnu = data.n_nuisance(self.state)
@@ -263,9 +272,11 @@ class OutputErrorFitter:
 
         With ``jacobian_mode="exact"`` (the default :data:`JACOBIAN`), the kernels'
         sensitivities for a model in term form
-        (:func:`~hystdisc.fitting.jacobian.exact_jacobian`). Forward differences
-        (:meth:`difference_jacobian`) where the simulation diverges, for a state-space
-        model, and with ``jacobian_mode="forward"``; lockstep differences for a
+        (:func:`~hystdisc.fitting.jacobian.exact_jacobian`) and the integrator's for a
+        state-space model with compiled partial derivatives
+        (:func:`~hystdisc.fitting.system_sensitivity.system_exact_jacobian`). Forward
+        differences (:meth:`difference_jacobian`) where the simulation diverges, for any
+        other state-space model, and with ``jacobian_mode="forward"``; lockstep differences for a
         state-space model when ``system_jacobian.METHOD`` is ``"lockstep"``
         (:func:`~hystdisc.fitting.system_jacobian.system_jacobian`).
         """
@@ -273,6 +284,13 @@ class OutputErrorFitter:
             return system_jacobian(
                 self.data, self.par, v, self.rel_step, self.masks, self.row_offsets
             )
+        if self.exact_system:
+            x, nu = self._split(v)
+            Jm = system_sensitivity.system_exact_jacobian(
+                self.data, self.par, x, nu, self.masks, self.rel_step
+            )
+            if Jm is not None:
+                return Jm
         if self.exact:
             x, nu = self._split(v)
             Jm = exact_jacobian(self.data, self.par, x, nu, self.state, self.masks, self.rel_step)

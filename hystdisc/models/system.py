@@ -73,6 +73,16 @@ class StateSpaceModel:
         ``rate(x, u, p, dx)`` writes ``dx/dt`` into ``dx``.
     observe : numba function
         ``observe(x, u, p)`` returns the output.
+    rate_jac, observe_grad : numba function or None
+        The partial derivatives, for exact sensitivities
+        (:mod:`hystdisc.simulation.sensitivity_ode`); None when the model has none (its
+        Jacobian is then taken by differences). ``rate_jac(x, u, p, need, jx, jp, work)``
+        writes ``d rate / d x`` into ``jx`` (states x states) and ``d rate / d p`` into
+        ``jp`` (states x ``len(p)``); ``observe_grad(x, u, p, need, gx, gp, work)`` writes
+        the output's into ``gx`` and ``gp``. Each call writes every entry it ever makes
+        nonzero (the caller zeroes the arrays once); ``need`` flags the entries of ``p``
+        whose derivatives are wanted (others may be skipped), ``work`` is scratch of
+        :data:`~hystdisc.simulation.sensitivity_ode.WORK_SIZE` floats.
     """
 
     name: str = ""
@@ -82,6 +92,8 @@ class StateSpaceModel:
     params: tuple[Param, ...] = ()
     rate = None
     observe = None
+    rate_jac = None
+    observe_grad = None
 
     def check(self, values: Mapping[str, float]) -> dict[str, float]:
         """Every parameter's value (defaults for the unset ones), checked against its bounds.
@@ -255,6 +267,7 @@ class FamilySystem(StateSpaceModel):
             self.states = family.driven_states
             self.inputs, self.output = ("theta", "theta_dot"), "torque"
             self.rate, self.observe = family.driven_rate, family.driven_output
+            self.rate_jac, self.observe_grad = family.driven_rate_jac, family.driven_output_grad
             rig: tuple[Param, ...] = ()
             fam_params = family.params
         else:
@@ -262,6 +275,7 @@ class FamilySystem(StateSpaceModel):
             self.inputs = ("u",) if exp.has_input else ()
             self.output = "theta"
             self.rate, self.observe = family.mech_rate, family.mech_output
+            self.rate_jac, self.observe_grad = family.mech_rate_jac, family.mech_output_grad
             rig = (RIG_PARAMS[0],) + ((RIG_PARAMS[1],) if exp.inertia_identifiable else ())
         eff_params = tuple(p for e in self._effects for p in e.params)
         self.params = (*fam_params, *family.law_params(self.laws), *rig, *eff_params)

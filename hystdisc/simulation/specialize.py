@@ -42,6 +42,9 @@ from collections.abc import Callable
 import numba
 
 _BUILT: dict[tuple, Callable] = {}
+#: Longest kernel name spelled out with its functions' names (the cache files add ~40
+#: characters; a longer name keeps only the template's name and the digest).
+MAX_NAME = 160
 #: Threads (:mod:`hystdisc.simulation.parallel`) build each kernel once between them.
 _LOCK = threading.Lock()
 
@@ -94,6 +97,8 @@ def _build(py, bound: dict) -> Callable:
     digest = hashlib.sha1(";".join(ident).encode()).hexdigest()[:12]
     # the cache file is named after it: short, unique per functions and their sources
     qual = f"{py.__name__}__{'__'.join(names)}__{digest}"
+    if len(qual) > MAX_NAME:  # file systems limit a name to 255 bytes
+        qual = f"{py.__name__}__{digest}"
     scope = dict(py.__globals__)
     scope.update(bound)
     fn = types.FunctionType(py.__code__, scope, qual, py.__defaults__, py.__closure__)

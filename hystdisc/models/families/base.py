@@ -244,6 +244,13 @@ class SystemFamily(Family):
     """
 
     is_system = True
+    #: The compiled partial derivatives of the ``driven_*`` and ``mech_*`` functions
+    #: (:class:`~hystdisc.models.system.StateSpaceModel`'s ``rate_jac`` and
+    #: ``observe_grad``); None: the family's Jacobian is taken by differences.
+    driven_rate_jac = None
+    driven_output_grad = None
+    mech_rate_jac = None
+    mech_output_grad = None
 
     def system(
         self,

@@ -48,7 +48,7 @@ from collections.abc import Mapping
 import numba
 import numpy as np
 
-from hystdisc.models.compiled import N_BASE, term_rate, term_torque
+from hystdisc.models.compiled import N_BASE, rate_grad, term_rate, term_torque, torque_grad
 from hystdisc.models.families.base import SystemFamily
 from hystdisc.models.params import param_table
 from hystdisc.models.system import EPS_AT, FAMILY_AT, J_AT, KS_AT
@@ -105,6 +105,98 @@ def _mech_output(x, u, p):
     return x[0]
 
 
+# ---- partial derivatives, for the exact sensitivities (hystdisc.simulation.sensitivity_ode);
+# work: 0..9 dT/dc, 10..15 dR/d(b, n), 16..19 the node rate's partials in (alpha, c0, c1, k0)
+_BLOCK = (_AL, _C0, _C1, _K0)
+
+
+@numba.njit(cache=True, inline="always")
+def _node_grad(p, v, d, z, work):
+    """The node rate and its partials in ``d``, ``z`` and the velocity ``v``; its partials
+    in ``alpha, c0, c1, k0`` go to ``work[16:20]``."""
+    den = p[_C0] + p[_C1]
+    node = (p[_AL] * z + p[_C0] * v + p[_K0] * d) / den
+    work[16] = z / den
+    work[17] = (v - node) / den
+    work[18] = -node / den
+    work[19] = d / den
+    return node, p[_K0] / den, p[_AL] / den, p[_C0] / den
+
+
+@numba.njit(cache=True, nogil=True)
+def _driven_rate_jac(x, u, p, need, jx, jp, work):
+    d, z = x[0], x[1]
+    node, nd, nz, _ = _node_grad(p, u[1], d, z, work)
+    rw, rz = rate_grad(p[_B:_N], p[_N], u[1] - node, z, need[_B : _N + 1], work[10:16])
+    jx[0, 0] = -nd
+    jx[0, 1] = -nz
+    jx[1, 0] = -rw * nd
+    jx[1, 1] = rz - rw * nz
+    for i in range(4):
+        jp[0, _BLOCK[i]] = -work[16 + i]
+        jp[1, _BLOCK[i]] = -rw * work[16 + i]
+    for i in range(6):
+        jp[1, _B + i] = work[10 + i]
+
+
+@numba.njit(cache=True, nogil=True)
+def _driven_output_grad(x, u, p, need, gx, gp, work):
+    d, z = x[0], x[1]
+    node, nd, nz, _ = _node_grad(p, u[1], d, z, work)
+    c1 = p[_C1]
+    _, _, tz = torque_grad(p[:N_BASE], u[0], u[1], z, p[EPS_AT], need[:N_BASE], work[:N_BASE])
+    gx[0] = c1 * nd
+    gx[1] = c1 * nz + tz
+    for i in range(N_BASE):
+        gp[i] = work[i]
+    for i in range(4):
+        gp[_BLOCK[i]] = c1 * work[16 + i]
+    gp[_C1] += node
+    gp[_K1] = u[0]
+
+
+@numba.njit(cache=True, nogil=True)
+def _mech_rate_jac(x, u, p, need, jx, jp, work):
+    th, w, d, z = x[0], x[1], x[2], x[3]
+    uu = u[0] if u.shape[0] > 0 else 0.0
+    node, nd, nz, nv = _node_grad(p, w, d, z, work)
+    c1, J = p[_C1], p[J_AT]
+    tth, tw, tz = torque_grad(p[:N_BASE], th, w, z, p[EPS_AT], need[:N_BASE], work[:N_BASE])
+    rw, rz = rate_grad(p[_B:_N], p[_N], w - node, z, need[_B : _N + 1], work[10:16])
+    force = c1 * node + p[_K1] * th + term_torque(p[:N_BASE], th, w, z, p[EPS_AT])
+    jx[0, 1] = 1.0
+    # J theta'' = u - k_s theta - F(theta, w, d, z)
+    jx[1, 0] = -(p[KS_AT] + p[_K1] + tth) / J
+    jx[1, 1] = -(c1 * nv + tw) / J
+    jx[1, 2] = -c1 * nd / J
+    jx[1, 3] = -(c1 * nz + tz) / J
+    jp[1, KS_AT] = -th / J
+    jp[1, J_AT] = -(uu - p[KS_AT] * th - force) / (J * J)
+    jp[1, _K1] = -th / J
+    for i in range(N_BASE):
+        jp[1, i] = -work[i] / J
+    for i in range(4):
+        jp[1, _BLOCK[i]] = -c1 * work[16 + i] / J
+    jp[1, _C1] -= node / J
+    # the stretch rate w - node and z' = R(w - node, z)
+    jx[2, 1] = 1.0 - nv
+    jx[2, 2] = -nd
+    jx[2, 3] = -nz
+    jx[3, 1] = rw * (1.0 - nv)
+    jx[3, 2] = -rw * nd
+    jx[3, 3] = rz - rw * nz
+    for i in range(4):
+        jp[2, _BLOCK[i]] = -work[16 + i]
+        jp[3, _BLOCK[i]] = -rw * work[16 + i]
+    for i in range(6):
+        jp[3, _B + i] = work[10 + i]
+
+
+@numba.njit(cache=True, nogil=True)
+def _mech_output_grad(x, u, p, need, gx, gp, work):
+    gx[0] = 1.0
+
+
 _PARAMS = """
     # name    unit           lower  upper  default  doc
     alpha_a   N*m            0      BIG    0.5      passive hysteretic torque
@@ -144,6 +236,10 @@ class Spencer(SystemFamily):
     driven_output = staticmethod(_driven_output)
     mech_rate = staticmethod(_mech_rate)
     mech_output = staticmethod(_mech_output)
+    driven_rate_jac = staticmethod(_driven_rate_jac)
+    driven_output_grad = staticmethod(_driven_output_grad)
+    mech_rate_jac = staticmethod(_mech_rate_jac)
+    mech_output_grad = staticmethod(_mech_output_grad)
 
     def block(self, p: Mapping[str, float], current: float) -> np.ndarray:
         """The family's part of the parameter vector at ``current`` (see the module; the

@@ -35,7 +35,7 @@ from collections.abc import Mapping
 import numba
 import numpy as np
 
-from hystdisc.models.compiled import N_BASE, term_torque
+from hystdisc.models.compiled import N_BASE, term_torque, torque_grad
 from hystdisc.models.families.base import SystemFamily
 from hystdisc.models.params import param_table
 from hystdisc.models.system import EPS_AT, FAMILY_AT, J_AT, KS_AT
@@ -78,6 +78,31 @@ def _mech_output(x, u, p):
     return x[0]
 
 
+# ---- partial derivatives of the driven model's torque, for the exact sensitivities
+# (hystdisc.simulation.sensitivity_ode); work: 0..9 the effects' dT/dc
+
+
+@numba.njit(cache=True, nogil=True)
+def _driven_rate_jac(x, u, p, need, jx, jp, work):
+    pass
+
+
+@numba.njit(cache=True, nogil=True)
+def _driven_output_grad(x, u, p, need, gx, gp, work):
+    xx, v = u[0], u[1]
+    s = 1.0 if xx > 0.0 else (-1.0 if xx < 0.0 else 0.0)
+    th = math.tanh(p[_BE] * v + p[_DE] * s)
+    sech2 = 1.0 - th * th
+    torque_grad(p[:N_BASE], xx, v, 0.0, p[EPS_AT], need[:N_BASE], work[:N_BASE])
+    for i in range(N_BASE):
+        gp[i] = work[i]
+    gp[_C] = v
+    gp[_K] = xx
+    gp[_AL] = th
+    gp[_BE] = p[_AL] * sech2 * v
+    gp[_DE] = p[_AL] * sech2 * s
+
+
 _PARAMS = """
     # name    unit           lower  upper  default  doc
     c_a       N*m*s/rad      0      BIG    0.8      passive viscous damping
@@ -109,6 +134,10 @@ class Tanh(SystemFamily):
     driven_output = staticmethod(_driven_output)
     mech_rate = staticmethod(_mech_rate)
     mech_output = staticmethod(_mech_output)
+    driven_rate_jac = staticmethod(_driven_rate_jac)
+    driven_output_grad = staticmethod(_driven_output_grad)
+    # none in a release or forced rig: the rate jumps with sign(theta), and the
+    # sensitivities would need the jump's saltation at every zero crossing
 
     def block(self, p: Mapping[str, float], current: float) -> np.ndarray:
         """The family's part of the parameter vector at ``current``."""

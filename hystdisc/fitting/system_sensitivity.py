@@ -1,0 +1,160 @@
+"""The exact output-error Jacobian of a state-space model with compiled partial derivatives.
+
+A model whose ``rate_jac`` and ``observe_grad`` are compiled (Spencer's family, the tanh
+family on imposed motion: :func:`~hystdisc.simulation.sensitivity_ode.has_sensitivities`)
+is integrated once per run with its forward sensitivities
+(:func:`~hystdisc.simulation.sensitivity_ode.simulate_system_sensitivities`): the same
+steps and the same output as the fit's own simulation, and the exact derivative of that
+discrete solution along the entries of the run's packed parameter vector and its initial
+state. The free parameters reach the packed vector through the model's algebra
+(``run_parameters``: the current laws folded in, the effects' terms), whose derivative is
+taken by central differences, no simulation, as for the term models
+(:func:`~hystdisc.fitting.jacobian.map_derivative`). The measurement chain (a fixed delay,
+a filter) is linear in the output; a parameter that moves the delay adds the forward
+difference of the measured output in the delay alone.
+
+Forward differences of separately simulated runs need one simulation per column, at a
+tolerance far below the difference step; here a column costs a few multiplications per
+stage and state.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+import hystdisc.fitting.simulate as _sim
+from hystdisc.fitting.data import FitData
+from hystdisc.fitting.jacobian import MAP_STEP, difference_steps
+from hystdisc.fitting.measurement import measured_output
+from hystdisc.fitting.parametrization import Parametrization, SystemParametrization
+from hystdisc.simulation.parallel import map_entries
+from hystdisc.simulation.sensitivity_ode import has_sensitivities, simulate_system_sensitivities
+
+
+def applies(par: Parametrization) -> bool:
+    """Whether the Jacobian of a fit of ``par`` is computed here (a state-space model with
+    compiled partial derivatives)."""
+    return isinstance(par, SystemParametrization) and has_sensitivities(par.model(par.x0)[0])
+
+
+def _packed(data: FitData, par: SystemParametrization, x: np.ndarray) -> np.ndarray:
+    system, values = par.model(x)
+    return np.array([system.run_parameters(values, float(i)) for i in data.currents])
+
+
+def packed_derivative(
+    data: FitData, par: SystemParametrization, x: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Every run's packed parameter vector at ``x`` and its derivative in ``x``.
+
+    Central differences (one-sided, second order, at a bound), the steps of
+    :func:`~hystdisc.fitting.jacobian.map_derivative`; an entry a parameter does not move
+    gets exactly 0.
+
+    Returns
+    -------
+    P : ndarray
+        Shape ``(runs, len(p))``.
+    D : ndarray
+        Shape ``(runs, len(p), parameters)``.
+    delays : ndarray of bool
+        The parameters that move the output's delay.
+    """
+    P = _packed(data, par, x)
+    D = np.zeros((*P.shape, x.size))
+    delays = np.zeros(x.size, dtype=bool)
+    system, values = par.model(x)
+    tau0 = system.output_delay(values)
+    scale = 1e-3 * (np.abs(x).max() + 1e-12)
+    for j in range(x.size):
+        h = MAP_STEP * max(abs(x[j]), scale)
+        if x[j] + h <= par.upper[j] and x[j] - h >= par.lower[j]:
+            offs, weights = (h, -h), (0.5 / h, -0.5 / h)
+        elif x[j] + h <= par.upper[j]:
+            offs, weights = (h, 2 * h), (2.0 / h, -0.5 / h)
+        else:
+            offs, weights = (-h, -2 * h), (-2.0 / h, 0.5 / h)
+        for o, wgt in zip(offs, weights, strict=True):
+            xj = x.copy()
+            xj[j] += o
+            D[:, :, j] += wgt * (_packed(data, par, xj) - P)
+            sj, vj = par.model(xj)
+            delays[j] |= sj.output_delay(vj) != tau0
+    return P, D, delays
+
+
+def system_exact_jacobian(
+    data: FitData,
+    par: SystemParametrization,
+    x: np.ndarray,
+    nu: np.ndarray,
+    masks: list[np.ndarray],
+    rel_step: float,
+) -> np.ndarray | None:
+    """The output-error Jacobian at the free parameters ``x`` and initial states ``nu``.
+
+    Arguments and result as :func:`~hystdisc.fitting.jacobian.exact_jacobian`: rows are
+    the masked samples, run after run; columns ``x``, then each run's initial states.
+    None when a run diverges or a sensitivity is so large that the Gram matrix would
+    overflow (the caller then takes differences).
+    """
+    R, k, nnu = data.n_runs, x.size, nu.shape[1]
+    system, values = par.model(x)
+    P, D, delays = packed_derivative(data, par, x)
+    moving = [d for d in range(P.shape[1]) if np.any(D[:, d, :] != 0.0)]
+    names = data.exp.initial_state(has_z="z" in system.states)
+    # each initial-state parameter's state (theta0 -> theta), or none
+    of_state = [system.states.index(n[:-1]) if n[:-1] in system.states else -1 for n in names]
+    starts = [i for i in of_state if i >= 0]
+    windows, steps = data.run_filters(), data.run_steps()
+    tau = system.output_delay(values)
+
+    def one(r: int):
+        out = simulate_system_sensitivities(
+            system,
+            data.t[r],
+            _sim.system_start(data, system, nu[r]),
+            P[r],
+            moving,
+            starts,
+            inputs=_sim.system_inputs(data, r, system),
+            rtol=_sim.SYSTEM_RTOL,
+            atol=_sim.SYSTEM_ATOL,
+            max_steps_per_sample=_sim.SYSTEM_MAX_STEPS * steps[r],
+        )
+        if out is None or not np.all(np.isfinite(out[0])) or not np.all(np.isfinite(out[1])):
+            return None
+        y, dY = out
+        cols = np.zeros((y.size, k + nnu))
+        cols[:, :k] = dY[:, : len(moving)] @ D[r][moving]
+        c = len(moving)
+        for i, s in enumerate(of_state):
+            if s >= 0:
+                cols[:, k + i] = dY[:, c]
+                c += 1
+        if tau != 0.0 or windows[r] > 1:
+            for q in range(cols.shape[1]):
+                cols[:, q] = measured_output(data.t[r], cols[:, q], tau, windows[r], steps[r])
+        if delays.any():
+            y0 = measured_output(data.t[r], y, tau, windows[r], steps[r])
+            hs = difference_steps(x, rel_step)
+            for j in np.flatnonzero(delays):
+                h = hs[j] if x[j] + hs[j] <= par.upper[j] else -hs[j]
+                xj = x.copy()
+                xj[j] += h
+                sj, vj = par.model(xj)
+                yj = measured_output(data.t[r], y, sj.output_delay(vj), windows[r], steps[r])
+                cols[:, j] += (yj - y0) / h
+        return cols
+
+    done = map_entries(one, list(range(R)))
+    if any(c is None for c in done):
+        return None
+    offsets = np.cumsum([0] + [int(m.sum()) for m in masks])
+    Jm = np.zeros((offsets[-1], k + R * nnu))
+    for q, cols in enumerate(done):
+        rows = slice(offsets[q], offsets[q + 1])
+        Jm[rows, :k] = cols[masks[q], :k]
+        Jm[rows, k + q * nnu : k + (q + 1) * nnu] = cols[masks[q], k:]
+    big = np.sqrt(np.finfo(float).max / max(Jm.shape[0], 1))
+    return Jm if np.abs(Jm).max(initial=0.0) < big else None
