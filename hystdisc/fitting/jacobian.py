@@ -42,6 +42,38 @@ def difference_steps(v: np.ndarray, rel_step: float) -> np.ndarray:
     return np.maximum(steps, 1e-10)
 
 
+def map_stencil(x: np.ndarray, par: Parametrization) -> Iterator[tuple[int, np.ndarray, float]]:
+    """The points and weights of the derivative of a parameter map at ``x``: for each free
+    parameter ``j``, two points ``xj`` with weights ``w`` such that ``sum w (f(xj) - f(x))``
+    is the derivative of ``f`` along ``j``. Central differences of relative step
+    :data:`MAP_STEP` (floor 1e-3 of the largest entry); one-sided, second order, where a
+    step would leave the bounds.
+
+    Examples
+    --------
+    >>> from hystdisc.fitting import FamilyParametrization
+    >>> par = FamilyParametrization("dahl", "release", {"k_x": 1.0})
+    >>> x = par.x0
+    >>> f = lambda v: float(v[0] ** 2)
+    >>> d0 = sum(w * (f(xj) - f(x)) for j, xj, w in map_stencil(x, par) if j == 0)
+    >>> bool(abs(d0 - 2 * x[0]) < 1e-8)
+    True
+    """
+    scale = 1e-3 * (np.abs(x).max() + 1e-12)
+    for j in range(x.size):
+        h = MAP_STEP * max(abs(x[j]), scale)
+        if x[j] + h <= par.upper[j] and x[j] - h >= par.lower[j]:
+            offs, weights = (h, -h), (0.5 / h, -0.5 / h)
+        elif x[j] + h <= par.upper[j]:
+            offs, weights = (h, 2 * h), (2.0 / h, -0.5 / h)
+        else:
+            offs, weights = (-h, -2 * h), (-2.0 / h, 0.5 / h)
+        for o, wgt in zip(offs, weights, strict=True):
+            xj = x.copy()
+            xj[j] += o
+            yield j, xj, wgt
+
+
 def map_derivative(
     data: FitData, par: Parametrization, x: np.ndarray, tm0: TermModel
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -63,22 +95,11 @@ def map_derivative(
     V0 = kernel_vectors(data, [tm0] * R, runs)
     D = np.zeros((R, V0.shape[1], x.size))
     delays = np.zeros(x.size, dtype=bool)
-    scale = 1e-3 * (np.abs(x).max() + 1e-12)
-    for j in range(x.size):
-        h = MAP_STEP * max(abs(x[j]), scale)
-        if x[j] + h <= par.upper[j] and x[j] - h >= par.lower[j]:
-            offs, weights = (h, -h), (0.5 / h, -0.5 / h)
-        elif x[j] + h <= par.upper[j]:
-            offs, weights = (h, 2 * h), (2.0 / h, -0.5 / h)
-        else:
-            offs, weights = (-h, -2 * h), (-2.0 / h, 0.5 / h)
-        for o, wgt in zip(offs, weights, strict=True):
-            xj = x.copy()
-            xj[j] += o
-            tm = par.model(xj)
-            # the weights sum to 0 with x's own: differences from V0 keep unmoved entries 0
-            D[:, :, j] += wgt * (kernel_vectors(data, [tm] * R, runs) - V0)
-            delays[j] |= tm.delay != tm0.delay
+    for j, xj, wgt in map_stencil(x, par):
+        tm = par.model(xj)
+        # the weights sum to 0 with x's own: differences from V0 keep unmoved entries 0
+        D[:, :, j] += wgt * (kernel_vectors(data, [tm] * R, runs) - V0)
+        delays[j] |= tm.delay != tm0.delay
     return D, delays
 
 

@@ -24,7 +24,7 @@ import numpy as np
 
 import hystdisc.fitting.simulate as _sim
 from hystdisc.fitting.data import FitData
-from hystdisc.fitting.jacobian import MAP_STEP, difference_steps
+from hystdisc.fitting.jacobian import difference_steps, map_stencil
 from hystdisc.fitting.measurement import measured_output
 from hystdisc.fitting.parametrization import Parametrization, SystemParametrization
 from hystdisc.simulation.parallel import map_entries
@@ -47,9 +47,8 @@ def packed_derivative(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Every run's packed parameter vector at ``x`` and its derivative in ``x``.
 
-    Central differences (one-sided, second order, at a bound), the steps of
-    :func:`~hystdisc.fitting.jacobian.map_derivative`; an entry a parameter does not move
-    gets exactly 0.
+    Differences at the points of :func:`~hystdisc.fitting.jacobian.map_stencil` (those of
+    the term models' map); an entry a parameter does not move gets exactly 0.
 
     Returns
     -------
@@ -65,21 +64,10 @@ def packed_derivative(
     delays = np.zeros(x.size, dtype=bool)
     system, values = par.model(x)
     tau0 = system.output_delay(values)
-    scale = 1e-3 * (np.abs(x).max() + 1e-12)
-    for j in range(x.size):
-        h = MAP_STEP * max(abs(x[j]), scale)
-        if x[j] + h <= par.upper[j] and x[j] - h >= par.lower[j]:
-            offs, weights = (h, -h), (0.5 / h, -0.5 / h)
-        elif x[j] + h <= par.upper[j]:
-            offs, weights = (h, 2 * h), (2.0 / h, -0.5 / h)
-        else:
-            offs, weights = (-h, -2 * h), (-2.0 / h, 0.5 / h)
-        for o, wgt in zip(offs, weights, strict=True):
-            xj = x.copy()
-            xj[j] += o
-            D[:, :, j] += wgt * (_packed(data, par, xj) - P)
-            sj, vj = par.model(xj)
-            delays[j] |= sj.output_delay(vj) != tau0
+    for j, xj, wgt in map_stencil(x, par):
+        D[:, :, j] += wgt * (_packed(data, par, xj) - P)
+        sj, vj = par.model(xj)
+        delays[j] |= sj.output_delay(vj) != tau0
     return P, D, delays
 
 
