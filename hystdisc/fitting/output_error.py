@@ -33,13 +33,13 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from hystdisc.errors import HystdiscError
-from hystdisc.fitting import system_sensitivity
 from hystdisc.fitting.data import FitData
 from hystdisc.fitting.jacobian import difference_jacobian, exact_jacobian
 from hystdisc.fitting.lm import levenberg_marquardt
 from hystdisc.fitting.parametrization import Parametrization, SystemParametrization
 from hystdisc.fitting.quantized import quantization_information_by_dwell
 from hystdisc.fitting.system_jacobian import lockstep_applies, system_jacobian
+from hystdisc.fitting.system_sensitivity import exact_applies, system_exact_jacobian
 from hystdisc.models import TermModel
 from hystdisc.stats import bic as _bic
 
@@ -203,7 +203,7 @@ class OutputErrorFitter:
         self.exact = mode == "exact" and not isinstance(par, SystemParametrization)
         #: The Jacobian is the integrator's sensitivities (a state-space model with
         #: compiled partial derivatives).
-        self.exact_system = mode == "exact" and system_sensitivity.applies(par)
+        self.exact_system = mode == "exact" and exact_applies(par)
         self.npar = len(par.names)
         self.state = par.has_state()
         self.nnu = data.n_nuisance(self.state)
@@ -286,9 +286,7 @@ class OutputErrorFitter:
             )
         if self.exact_system:
             x, nu = self._split(v)
-            Jm = system_sensitivity.system_exact_jacobian(
-                self.data, self.par, x, nu, self.masks, self.rel_step
-            )
+            Jm = system_exact_jacobian(self.data, self.par, x, nu, self.masks, self.rel_step)
             if Jm is not None:
                 return Jm
         if self.exact:

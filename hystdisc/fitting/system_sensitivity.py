@@ -30,11 +30,19 @@ from hystdisc.fitting.parametrization import Parametrization, SystemParametrizat
 from hystdisc.simulation.parallel import map_entries
 from hystdisc.simulation.sensitivity_ode import has_sensitivities, simulate_system_sensitivities
 
+#: False: every state-space model takes forward differences, as before the sensitivities
+#: (``benchmarks/system_jacobian.py`` compares the two).
+ENABLED = True
 
-def applies(par: Parametrization) -> bool:
+
+def exact_applies(par: Parametrization) -> bool:
     """Whether the Jacobian of a fit of ``par`` is computed here (a state-space model with
-    compiled partial derivatives)."""
-    return isinstance(par, SystemParametrization) and has_sensitivities(par.model(par.x0)[0])
+    compiled partial derivatives, and :data:`ENABLED`)."""
+    return (
+        ENABLED
+        and isinstance(par, SystemParametrization)
+        and has_sensitivities(par.model(par.x0)[0])
+    )
 
 
 def _packed(data: FitData, par: SystemParametrization, x: np.ndarray) -> np.ndarray:
