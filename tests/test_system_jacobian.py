@@ -180,6 +180,7 @@ def test_a_batch_on_threads_is_the_batch_in_turn_to_the_bit():
     [
         ("spencer", SPENCER, "driven", ()),
         ("spencer", SPENCER, "driven", ("shear_thinning",)),
+        ("spencer", SPENCER, "driven", ("channel_delay",)),
         ("spencer", {k: v for k, v in SPENCER.items() if k != "k1"}, "release", ()),
         ("tanh", TANH, "driven", ("coulomb",)),
     ],
@@ -187,14 +188,15 @@ def test_a_batch_on_threads_is_the_batch_in_turn_to_the_bit():
 def test_exact_system_jacobian_matches_a_tight_central_difference(
     family, truth, experiment, effects
 ):
-    """Spencer driven (states d, z; with an effect's nonlinear terms), Spencer released
-    (states theta, theta_dot, d, z; each run's initial-state columns) and tanh driven (no
-    states) against central differences of runs integrated 100 times tighter."""
+    """Spencer driven (states d, z; with an effect's nonlinear terms; with a channel delay,
+    whose column is the forward difference in the delay alone, as for the term models),
+    Spencer released (states theta, theta_dot, d, z; each run's initial-state columns) and
+    tanh driven (no states) against central differences of runs integrated 100 times
+    tighter."""
     data = _data(family, truth, experiment, noise=0.01)
     rng = np.random.default_rng(7)
     start = {k: v * rng.uniform(0.7, 1.3) for k, v in truth.items()}
-    extra = {"c_st": 0.3, "m": 0.7, "f_c": 0.2}
-    start.update({k: v for k, v in extra.items() if k in ("c_st", "m", "f_c")})
+    start.update({"c_st": 0.3, "m": 0.7, "f_c": 0.2, "tau_d": 0.0023})  # off the sample grid
     par = FamilySystemParametrization(family, experiment, start, effects)
     fitter = OutputErrorFitter(data, par)
     assert fitter.exact_system

@@ -15,7 +15,7 @@ per column, every column of a run in one batched call).
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 
 import numpy as np
 
@@ -162,6 +162,10 @@ def exact_jacobian(
     act = np.array(moving + starts, dtype=np.int64)
     offsets = np.cumsum([0] + [int(m.sum()) for m in masks])
     Jm = np.zeros((offsets[-1], k + R * nnu))
+
+    def delay_of(xj: np.ndarray) -> float:
+        return par.model(xj).delay
+
     for group in run_groups(data, 1 + act.size):
         ys, sens, bad = simulate_sensitivities(data, tm0, group, [nu[q] for q in group], act)
         if any(bad):
@@ -170,7 +174,7 @@ def exact_jacobian(
             cols = np.empty((y.size, k + nnu))
             cols[:, :k] = S[:, : len(moving)] @ D[q][moving]
             cols[:, k:] = S[:, len(moving) :]
-            _measured_columns(data, par, q, x, tm0, y, cols, delays, rel_step)
+            measured_columns(data, par, q, x, delay_of, y, cols, delays, rel_step)
             rows = slice(offsets[q], offsets[q + 1])
             Jm[rows, :k] = cols[masks[q], :k]
             Jm[rows, k + q * nnu : k + (q + 1) * nnu] = cols[masks[q], k:]
@@ -181,26 +185,40 @@ def exact_jacobian(
     return Jm if np.all(np.isfinite(Jm)) and np.abs(Jm).max(initial=0.0) < big else None
 
 
-def _measured_columns(data, par, r, x, tm0, y, cols, delays, rel_step) -> None:
+def measured_columns(
+    data: FitData,
+    par: Parametrization,
+    r: int,
+    x: np.ndarray,
+    delay_of: Callable[[np.ndarray], float],
+    y: np.ndarray,
+    cols: np.ndarray,
+    delays: np.ndarray,
+    rel_step: float,
+) -> None:
     """Run ``r``'s derivative columns ``cols`` of the simulated output ``y`` through the
-    measurement chain (in place), plus the delay's share of the ``delays`` columns."""
+    measurement chain (in place), plus the delay's share of the ``delays`` columns.
+
+    ``delay_of(x)`` is the output's delay at the free parameters ``x``; a parameter that
+    moves it gets the forward difference of the measured output in the delay alone (the
+    step rule of :func:`difference_jacobian`, its floor from the free parameters).
+    """
     t = data.t[r]
     window = data.run_filters()[r]
     step = data.run_steps()[r]
-    if tm0.delay != 0.0 or window > 1:
+    tau = delay_of(x)
+    if tau != 0.0 or window > 1:
         for q in range(cols.shape[1]):
-            cols[:, q] = measured_output(t, cols[:, q], tm0.delay, window, step)
+            cols[:, q] = measured_output(t, cols[:, q], tau, window, step)
     if not delays.any():
         return
-    y0 = measured_output(t, y, tm0.delay, window, step)
-    # forward differences in the delay alone (the step rule of difference_jacobian, its
-    # floor from the free parameters)
+    y0 = measured_output(t, y, tau, window, step)
     steps = difference_steps(x, rel_step)
     for j in np.flatnonzero(delays):
         h = steps[j] if x[j] + steps[j] <= par.upper[j] else -steps[j]
         xj = x.copy()
         xj[j] += h
-        yj = measured_output(t, y, par.model(xj).delay, window, step)
+        yj = measured_output(t, y, delay_of(xj), window, step)
         cols[:, j] += (yj - y0) / h
 
 

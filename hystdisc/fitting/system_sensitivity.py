@@ -24,8 +24,7 @@ import numpy as np
 
 import hystdisc.fitting.simulate as _sim
 from hystdisc.fitting.data import FitData
-from hystdisc.fitting.jacobian import difference_steps, map_stencil
-from hystdisc.fitting.measurement import measured_output
+from hystdisc.fitting.jacobian import map_stencil, measured_columns
 from hystdisc.fitting.parametrization import Parametrization, SystemParametrization
 from hystdisc.simulation.parallel import map_entries
 from hystdisc.simulation.sensitivity_ode import has_sensitivities, simulate_system_sensitivities
@@ -95,15 +94,18 @@ def system_exact_jacobian(
     overflow (the caller then takes differences).
     """
     R, k, nnu = data.n_runs, x.size, nu.shape[1]
-    system, values = par.model(x)
+    system = par.model(x)[0]
     P, D, delays = packed_derivative(data, par, x)
     moving = [d for d in range(P.shape[1]) if np.any(D[:, d, :] != 0.0)]
     names = data.exp.initial_state(has_z="z" in system.states)
     # each initial-state parameter's state (theta0 -> theta), or none
     of_state = [system.states.index(n[:-1]) if n[:-1] in system.states else -1 for n in names]
     starts = [i for i in of_state if i >= 0]
-    windows, steps = data.run_filters(), data.run_steps()
-    tau = system.output_delay(values)
+    steps = data.run_steps()
+
+    def delay_of(xj: np.ndarray) -> float:
+        s, v = par.model(xj)
+        return s.output_delay(v)
 
     def one(r: int):
         out = simulate_system_sensitivities(
@@ -128,19 +130,7 @@ def system_exact_jacobian(
             if s >= 0:
                 cols[:, k + i] = dY[:, c]
                 c += 1
-        if tau != 0.0 or windows[r] > 1:
-            for q in range(cols.shape[1]):
-                cols[:, q] = measured_output(data.t[r], cols[:, q], tau, windows[r], steps[r])
-        if delays.any():
-            y0 = measured_output(data.t[r], y, tau, windows[r], steps[r])
-            hs = difference_steps(x, rel_step)
-            for j in np.flatnonzero(delays):
-                h = hs[j] if x[j] + hs[j] <= par.upper[j] else -hs[j]
-                xj = x.copy()
-                xj[j] += h
-                sj, vj = par.model(xj)
-                yj = measured_output(data.t[r], y, sj.output_delay(vj), windows[r], steps[r])
-                cols[:, j] += (yj - y0) / h
+        measured_columns(data, par, r, x, delay_of, y, cols, delays, rel_step)
         return cols
 
     done = map_entries(one, list(range(R)))
