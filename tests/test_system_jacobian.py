@@ -85,7 +85,9 @@ def _reference(fitter, v):
     return ref
 
 
-def test_lockstep_nominal_is_the_integrator_bit_for_bit_and_copies_follow_it():
+def _spencer_run():
+    """Spencer's driven model at the test values, a 0.5-s sine motion and its packed
+    parameters at 0.5 A."""
     par = FamilySystemParametrization("spencer", "driven", SPENCER)
     system, values = par.model(par.x0)
     t = np.arange(0.0, 0.5, 1e-3)
@@ -93,7 +95,11 @@ def test_lockstep_nominal_is_the_integrator_bit_for_bit_and_copies_follow_it():
         "theta": 0.2 * np.sin(4 * np.pi * t),
         "theta_dot": 0.8 * np.pi * np.cos(4 * np.pi * t),
     }
-    p = system.run_parameters(values, 0.5)
+    return system, values, t, inputs, system.run_parameters(values, 0.5)
+
+
+def test_lockstep_nominal_is_the_integrator_bit_for_bit_and_copies_follow_it():
+    system, values, t, inputs, p = _spencer_run()
     x0 = system.initial_state()
     one = simulate_system(system, t, x0, values, 0.5, inputs, rtol=1e-7, atol=1e-10).y
     P = np.array([p, p, p * (1 + 1e-3)])
@@ -212,14 +218,7 @@ def test_exact_system_jacobian_matches_a_tight_central_difference(
 
 
 def test_the_output_is_the_integrators_to_the_bit():
-    par = FamilySystemParametrization("spencer", "driven", SPENCER)
-    system, values = par.model(par.x0)
-    t = np.arange(0.0, 0.5, 1e-3)
-    inputs = {
-        "theta": 0.2 * np.sin(4 * np.pi * t),
-        "theta_dot": 0.8 * np.pi * np.cos(4 * np.pi * t),
-    }
-    p = system.run_parameters(values, 0.5)
+    system, values, t, inputs, p = _spencer_run()
     one = simulate_system(system, t, system.initial_state(), values, 0.5, inputs).y
     y, dy = simulate_system_sensitivities(
         system, t, system.initial_state(), p, [0, len(p) - 1], [1], inputs=inputs

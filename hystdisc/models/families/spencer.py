@@ -123,6 +123,17 @@ def _node_grad(p, v, d, z, work):
     return node, p[_K0] / den, p[_AL] / den, p[_C0] / den
 
 
+@numba.njit(cache=True, inline="always")
+def _stretch_rows(jp, i, rw, work):
+    """Rows ``i`` (the stretch rate ``x' - node``) and ``i + 1`` (``z' = R(x' - node, z)``)
+    of ``d rate / d p``, from the partials in ``work`` and ``rw = dR/d(x' - node)``."""
+    for q in range(4):
+        jp[i, _BLOCK[q]] = -work[16 + q]
+        jp[i + 1, _BLOCK[q]] = -rw * work[16 + q]
+    for q in range(6):
+        jp[i + 1, _B + q] = work[10 + q]
+
+
 @numba.njit(cache=True, nogil=True)
 def _driven_rate_jac(x, u, p, need, jx, jp, work):
     d, z = x[0], x[1]
@@ -132,11 +143,7 @@ def _driven_rate_jac(x, u, p, need, jx, jp, work):
     jx[0, 1] = -nz
     jx[1, 0] = -rw * nd
     jx[1, 1] = rz - rw * nz
-    for i in range(4):
-        jp[0, _BLOCK[i]] = -work[16 + i]
-        jp[1, _BLOCK[i]] = -rw * work[16 + i]
-    for i in range(6):
-        jp[1, _B + i] = work[10 + i]
+    _stretch_rows(jp, 0, rw, work)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -185,11 +192,7 @@ def _mech_rate_jac(x, u, p, need, jx, jp, work):
     jx[3, 1] = rw * (1.0 - nv)
     jx[3, 2] = -rw * nd
     jx[3, 3] = rz - rw * nz
-    for i in range(4):
-        jp[2, _BLOCK[i]] = -work[16 + i]
-        jp[3, _BLOCK[i]] = -rw * work[16 + i]
-    for i in range(6):
-        jp[3, _B + i] = work[10 + i]
+    _stretch_rows(jp, 2, rw, work)
 
 
 @numba.njit(cache=True, nogil=True)
