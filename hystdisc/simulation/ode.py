@@ -67,6 +67,17 @@ def _input_at(U, k, f, out):
         out[j] = U[k, j] + (U[k + 1, j] - U[k, j]) * f
 
 
+@numba.njit(cache=True, inline="always")
+def _next_step(err, h, hh, cut):
+    """The step size to try after a step of size ``hh`` (``cut``: shortened from ``h`` to
+    end on a sample) whose scaled error is ``err`` (accepted when ``err <= 1``): the one
+    step-size rule of every loop here and of the sensitivities' (they must take the same
+    steps)."""
+    fac = 5.0 if err == 0.0 else min(5.0, max(0.2, 0.9 * err**-0.2))
+    # a step cut short at a sample does not shrink the next one
+    return max(h, hh * fac) if (err <= 1.0 and cut) else hh * fac
+
+
 def _stages(x, U, k, tt, span, hh, p, ks, xt, u, x5):
     """The first six stages of a Dormand–Prince step of size ``hh`` from ``x`` at ``t[k] +
     tt`` into ``ks[:6]``, and the 5th-order solution into ``x5``."""
@@ -142,14 +153,10 @@ def _integrate(x0, t, U, p, rtol, atol, X, Y, max_steps):
             steps += 1
             if not np.isfinite(err) or steps > max_steps:
                 return 1
-            fac = 5.0 if err == 0.0 else min(5.0, max(0.2, 0.9 * err**-0.2))
             if err <= 1.0:
                 tt += hh
                 x[:] = x5
-                # a step cut short at a sample does not shrink the next one
-                h = max(h, hh * fac) if cut else hh * fac
-            else:
-                h = hh * fac
+            h = _next_step(err, h, hh, cut)
         X[k + 1] = x
         _input_at(U, k, 1.0, u)
         Y[k + 1] = observe(x, u, p)  # noqa: F821
@@ -189,16 +196,13 @@ def _integrate_lockstep(X0, t, U, P, rtol, atol, Y, max_steps):
             steps += 1
             if not np.isfinite(err) or steps > max_steps:
                 return 1
-            fac = 5.0 if err == 0.0 else min(5.0, max(0.2, 0.9 * err**-0.2))
             if err <= 1.0:
                 x[0] = x5
                 for c in range(1, m):  # the copies take the accepted step as it is
                     _stages(x[c], U, k, tt, span, hh, P[c], kc, xt, u, x5)
                     x[c] = x5
                 tt += hh
-                h = max(h, hh * fac) if cut else hh * fac
-            else:
-                h = hh * fac
+            h = _next_step(err, h, hh, cut)
         _input_at(U, k, 1.0, u)
         for c in range(m):
             Y[c, k + 1] = observe(x[c], u, P[c])  # noqa: F821

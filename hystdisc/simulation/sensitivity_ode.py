@@ -56,6 +56,7 @@ from hystdisc.simulation.ode import (
     RTOL,
     _error,
     _input_at,
+    _next_step,
     _stages,
     input_matrix,
 )
@@ -187,14 +188,11 @@ def _integrate_sens(x0, S0, t, U, p, act, need, rtol, atol, Y, dY, max_steps):
             steps += 1
             if not np.isfinite(err) or steps > max_steps:
                 return 1
-            fac = 5.0 if err == 0.0 else min(5.0, max(0.2, 0.9 * err**-0.2))
             if err <= 1.0:
                 _sens_step(x, S, U, k, tt, span, hh, p, act, need, ks, xt, u, dk, dX, jx, jp, work)
                 tt += hh
                 x[:] = x5
-                h = max(h, hh * fac) if cut else hh * fac
-            else:
-                h = hh * fac
+            h = _next_step(err, h, hh, cut)
         _input_at(U, k, 1.0, u)
         Y[k + 1] = observe(x, u, p)  # noqa: F821
         _output_sens(x, u, p, act, need, S, gx, gp, work, dY[k + 1])
