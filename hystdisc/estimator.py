@@ -97,7 +97,7 @@ from hystdisc.models import FAMILIES, format_equation, get_family
 from hystdisc.registry import family_names, get_experiment
 from hystdisc.results import build_results
 from hystdisc.simulation.admissibility import check_admissible
-from hystdisc.simulation.parallel import limit_threads, usable_cpus
+from hystdisc.simulation.parallel import limit_threads, map_after, usable_cpus
 
 #: Default upper limit of the threads of one discovery.
 MAX_THREADS = 4
@@ -398,6 +398,33 @@ class Discovery(BaseEstimator):
         with ThreadPoolExecutor(max_workers=min(n, len(items))) as pool:
             return list(pool.map(work, items))
 
+    def _map_after(
+        self,
+        before: Callable,
+        before_items: list,
+        after: Callable,
+        after_items: list,
+        serial_before: bool = False,
+    ) -> tuple[list, list]:
+        """``before`` over ``before_items`` and ``after(item, ready)`` over ``after_items``
+        on up to ``n_jobs`` threads (:func:`~hystdisc.simulation.parallel.map_after`: an
+        ``after`` task waits for the ``before`` results it asks ``ready`` for, not for all
+        of them). ``serial_before`` runs the ``before`` tasks in turn first (stage 1's
+        ensemble draws from numpy's global generator)."""
+
+        def quiet(fn):
+            def call(*args):
+                with np.errstate(all="ignore"):
+                    return fn(*args)
+
+            return call
+
+        n = _n_threads(self.n_jobs)
+        if serial_before or n <= 1:
+            firsts = self._map(before, before_items, serial=True)
+            return firsts, self._map(lambda x: after(x, firsts.__getitem__), after_items)
+        return map_after(quiet(before), before_items, quiet(after), after_items, n)
+
     def _shape0(self, name: str) -> np.ndarray | None:
         """The stage-1 shape constants of ``name``'s shape (None before stage 1)."""
         shape = FAMILY_SHAPE[name]
@@ -553,18 +580,6 @@ class Discovery(BaseEstimator):
             say(f"stage 1: sparse regression with hysteresis shape '{shape}'")
             return fit_shape(eq, shape, terms, self.threshold, self.ensemble, self.seed)
 
-        # the ensemble draws from numpy's global generator: one shape after the other
-        fits = self._map(shape_fit, list(self.shapes), serial=self.ensemble)
-        self.stage1_ = dict(zip(self.shapes, fits, strict=True))
-        best = min(self.stage1_.values(), key=lambda f: f.bic)
-        self.discovered_shape_ = best.shape
-        self.discovered_ = best.term_model()
-        self.terms_ = {
-            "torque": [t for t in best.terms if not (t == "theta" and not exp.motion_imposed)],
-            "hysteresis": list(SHAPES[best.shape].terms),
-        }
-        self.discovered_name_ = describe_structure(best.terms, best.shape)
-
         # stage 2: each family by output error (and the discovered structure when it is not
         # one of them), each fit on its own
         sys_fams = [n for n in fams if FAMILIES[n].is_system]
@@ -573,26 +588,16 @@ class Discovery(BaseEstimator):
             # force shows their internal state; name them to compare them on a rig
             sys_fams = []
         fams = [n for n in fams if not FAMILIES[n].is_system]
-        same = [
-            n
-            for n in fams
-            if FAMILY_SHAPE[n] == best.shape
-            and set(FAMILIES[n].torque_terms) == set(best.terms) - {"theta"}
-        ]
+        shapes = list(self.shapes)
 
-        def family_fit(k):
-            if k == len(fams):
-                say("stage 2: output-error fit of the discovered structure")
-                tpar = TermParametrization(
-                    best.terms, best.shape, best.coefs, best.s, best.J, eq.experiment
-                )
-                return OutputErrorFitter(fd, tpar, max_nfev=self.max_nfev).fit(heldout=False)
-            say(f"stage 2: output-error fit of {fams[k]} ({k + 1}/{len(fams)})")
-            return first_fit(fams[k])
-
-        def first_fit(name):
-            par = family_par(name, self._family_start(eq, name))
-            return OutputErrorFitter(fd, par, max_nfev=self.max_nfev).fit(heldout=False)
+        def same_structure(best) -> list[str]:
+            """The families whose structure stage 1 discovered (``best``)."""
+            return [
+                n
+                for n in fams
+                if FAMILY_SHAPE[n] == best.shape
+                and set(FAMILIES[n].torque_terms) == set(best.terms) - {"theta"}
+            ]
 
         def family_par(name, start):
             """``name`` started at ``start``: its z scale chosen there, the current terms
@@ -600,6 +605,49 @@ class Discovery(BaseEstimator):
             start, norm = _normalization(name, start)
             fixed = {p: 0.0 for p in FAMILIES[name].current_params} if self.single_current_ else {}
             return FamilyParametrization(name, eq.experiment, start, (), fixed, norm)
+
+        def family_fit(k, ready):
+            """The first fit of family ``k`` from its shape's stage-1 search (``ready``:
+            the stage-1 fits, waited for), or (``k = len(fams)``) of the discovered
+            structure when no family has it."""
+            if k == len(fams):
+                best = min((ready(j) for j in range(len(shapes))), key=lambda f: f.bic)
+                if same_structure(best):
+                    return None
+                say("stage 2: output-error fit of the discovered structure")
+                tpar = TermParametrization(
+                    best.terms, best.shape, best.coefs, best.s, best.J, eq.experiment
+                )
+                return OutputErrorFitter(fd, tpar, max_nfev=self.max_nfev).fit(heldout=False)
+            name = fams[k]
+            shape = FAMILY_SHAPE[name]
+            s0 = ready(shapes.index(shape)).s if shape in shapes else None
+            say(f"stage 2: output-error fit of {name} ({k + 1}/{len(fams)})")
+            # the stage-1 search of this shape is the natural start (no second grid search)
+            start, _ = family_start(eq, name, s0=s0, one_level=self.single_current_)
+            par = family_par(name, start)
+            return OutputErrorFitter(fd, par, max_nfev=self.max_nfev).fit(heldout=False)
+
+        # a family's first fit starts once its shape's stage-1 search has ended, on the
+        # threads the other shapes leave free; the ensemble draws from numpy's global
+        # generator: one shape after the other
+        fits, firsts = self._map_after(
+            shape_fit, shapes, family_fit, list(range(len(fams) + 1)), self.ensemble
+        )
+        self.stage1_ = dict(zip(shapes, fits, strict=True))
+        best = min(self.stage1_.values(), key=lambda f: f.bic)
+        self.discovered_shape_ = best.shape
+        self.discovered_ = best.term_model()
+        self.terms_ = {
+            "torque": [t for t in best.terms if not (t == "theta" and not exp.motion_imposed)],
+            "hysteresis": list(SHAPES[best.shape].terms),
+        }
+        self.discovered_name_ = describe_structure(best.terms, best.shape)
+        same = same_structure(best)
+
+        def first_fit(name):
+            par = family_par(name, self._family_start(eq, name))
+            return OutputErrorFitter(fd, par, max_nfev=self.max_nfev).fit(heldout=False)
 
         def more_starts(name, mapper=None):
             """The family from its other starts (its stage-1 fit is the first), screened
@@ -636,8 +684,7 @@ class Discovery(BaseEstimator):
                 return fit
             return OutputErrorFitter(fd, fit.par, max_nfev=self.max_nfev).heldout_at(fit)
 
-        fits = self._map(family_fit, list(range(len(fams) + (0 if same else 1))))
-        self.family_fits_: dict[str, OEFit] = dict(zip(fams, fits, strict=False))
+        self.family_fits_: dict[str, OEFit] = dict(zip(fams, firsts, strict=False))
         good = NOISE_RATIO * fd.noise_std
         # a first fit at the floor that does not predict the held-out runs is no proof of
         # the optimum: a seed-form Bouc-Wen at 1.009x the noise with n = 0.01 predicted
@@ -683,7 +730,7 @@ class Discovery(BaseEstimator):
                 "too, their optima as further starts (not compared)"
             )
         self.family_fits_ = dict(zip(fams, self._map(with_heldout, fams), strict=True))
-        self.discovered_fit_ = self.family_fits_[same[0]] if same else fits[-1]
+        self.discovered_fit_ = self.family_fits_[same[0]] if same else firsts[-1]
         if sys_fams:
             if (base := self.family_fits_.get("bouc-wen-std")) is None:
                 say("stage 2: output-error fit of bouc-wen-std (the start of the system families)")

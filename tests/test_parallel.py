@@ -2,19 +2,24 @@
 
 The bitwise equality of a batch on threads and in turn is tested where the batches live
 (``test_sensitivity.py`` for the term kernels, ``test_system_jacobian.py`` for the
-state-space integrator); here: how a batch is cut, the limit, and a forked child.
+state-space integrator); here: how a batch is cut, the limit, a forked child, and the
+discovery's threads (stage 1 and the first fits side by side).
 """
 
 from __future__ import annotations
 
 import multiprocessing
+import threading
 
 import numpy as np
 import pytest
 
 import hystdisc.simulation.batch as batch
+from hystdisc import Discovery
+from hystdisc.models import Model
 from hystdisc.simulation.batch import integrate_z_flat
-from hystdisc.simulation.parallel import chunk_bounds, limit_threads, n_threads
+from hystdisc.simulation.parallel import chunk_bounds, limit_threads, map_after, n_threads
+from hystdisc.simulation.synth import generate
 
 
 def test_chunks_are_contiguous_balanced_by_samples_and_never_too_small():
@@ -64,3 +69,35 @@ def test_a_forked_child_runs_chunked_batches_on_a_pool_of_its_own(monkeypatch):
     with multiprocessing.get_context("fork").Pool(1) as pool:
         got = pool.apply_async(_child, (0,)).get(timeout=120)
     assert got == want
+
+
+def test_an_after_task_starts_before_every_before_task_has_ended():
+    # before(0) can only end once after(0) has run: after(0) needs only before(1), so on
+    # two threads it starts as soon as before(1) ends (waiting for all would deadlock)
+    gate = threading.Event()
+
+    def before(k):
+        if k == 0:
+            assert gate.wait(timeout=30), "after(0) did not start while before(0) ran"
+        return 10 * k
+
+    def after(j, ready):
+        value = ready(1)
+        gate.set()
+        return value + j
+
+    assert map_after(before, [0, 1], after, [0, 5], 2) == ([0, 10], [10, 15])
+
+
+def test_discovery_answers_the_same_on_one_thread_and_two():
+    data = generate(Model("dahl"), currents=(0, 0.5, 1), duration=3, noise=1e-3, seed=4)
+    kw = dict(families=["bingham", "dahl"], close_loop=False, n_starts=1, heldout=False)
+    one = Discovery(n_jobs=1, **kw).fit(data)
+    two = Discovery(n_jobs=2, **kw).fit(data)
+    for name in ("bingham", "dahl"):
+        assert one.family_fits_[name].params == two.family_fits_[name].params
+        assert one.family_fits_[name].rms == two.family_fits_[name].rms
+    assert one.discovered_fit_.rms == two.discovered_fit_.rms
+    assert {s: f.s.tolist() for s, f in one.stage1_.items()} == {
+        s: f.s.tolist() for s, f in two.stage1_.items()
+    }

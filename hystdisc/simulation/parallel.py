@@ -131,3 +131,31 @@ def map_entries(fn: Callable[[Any], Any], items: Sequence[Any]) -> list[Any]:
     for f in [_shared_pool().submit(lane) for _ in range(n)]:
         f.result()
     return out
+
+
+def map_after(
+    before: Callable[[Any], Any],
+    before_items: Sequence[Any],
+    after: Callable[[Any, Callable[[int], Any]], Any],
+    after_items: Sequence[Any],
+    n: int,
+) -> tuple[list[Any], list[Any]]:
+    """``before`` over ``before_items``, then ``after(item, ready)`` over ``after_items``,
+    on ``n`` threads of a pool of their own; ``ready(k)`` waits for the ``k``-th
+    ``before`` result and returns it. An ``after`` task thus starts as soon as a thread is
+    free, not once every ``before`` task has ended (a family's first fit needs only its
+    own shape's stage-1 search). The ``before`` tasks are queued first and the pool starts
+    its tasks in turn, so a waiting task never holds up one it waits for.
+
+    Returns both lists of results, in order (each task is computed as in turn).
+
+    Examples
+    --------
+    >>> map_after(lambda k: k * k, [1, 2, 3], lambda j, ready: ready(j) + 1, [2, 0], 2)
+    ([1, 4, 9], [10, 2])
+    """
+    with ThreadPoolExecutor(max_workers=max(1, n)) as pool:
+        firsts = [pool.submit(before, x) for x in before_items]
+        ready = lambda k: firsts[k].result()  # noqa: E731
+        rest = [pool.submit(after, x, ready) for x in after_items]
+        return [f.result() for f in firsts], [f.result() for f in rest]
