@@ -130,9 +130,7 @@ def test_basin_starts_stay_at_their_grid_points(dahl_eq):
         assert any(abs(log_rho - g) < 1e-9 for g in grid), log_rho
         logs.append(log_rho)
     first = float(np.log(starts[0][1]["rho"]))
-    assert (
-        min(abs(a - b) for a, b in [(logs[0], logs[1]), (logs[0], first), (logs[1], first)]) >= 1.0
-    )
+    assert min(abs(a - b) for a, b in [(logs[0], logs[1]), (logs[0], first), (logs[1], first)]) >= 1.0
     # the projection is the fit at those shape constants: refining can only lower the RSS
     s = np.array([logs[0]])
     _, _, rss_kept = varpro(dahl_eq, "dahl", ["theta", "1", "theta_dot", "z", "i*z"], s, False)
