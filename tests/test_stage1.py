@@ -13,9 +13,7 @@ from hystdisc.discovery import (
     describe_structure,
     differentiate,
     family_start,
-    family_starts,
     fit_shape,
-    varpro,
 )
 from hystdisc.discovery.selection import EQ_RSS_FLOOR
 from hystdisc.models import Model
@@ -115,29 +113,6 @@ def test_family_start_maps_stage1_onto_the_family(dahl_eq):
     p1, coefs1 = family_start(dahl_eq, "dahl", ["theta^3"], one_level=True, constant=False)
     assert "1" not in coefs1 and "theta^3" in coefs1 and "i*z" not in coefs1
     assert p1["k_wb"] == 0.0
-
-
-def test_basin_starts_stay_at_their_grid_points(dahl_eq):
-    # a basin's start keeps its grid point's shape constants (a local search from it can
-    # leave the basin): each is the least-squares projection at a distinct grid point
-    starts = family_starts(dahl_eq, "dahl", basins=2)
-    assert [label for label, _ in starts] == ["stage 1", "stage-1 basin 2", "stage-1 basin 3"]
-    shape = SHAPES["dahl"]
-    grid = {round(float(g[0]), 9) for g in shape.grid(dahl_eq.scale)}
-    logs = []
-    for _, p in starts[1:]:
-        log_rho = float(np.log(p["rho"]))
-        assert any(abs(log_rho - g) < 1e-9 for g in grid), log_rho
-        logs.append(log_rho)
-    first = float(np.log(starts[0][1]["rho"]))
-    assert min(abs(a - b) for a, b in [(logs[0], logs[1]), (logs[0], first), (logs[1], first)]) >= 1.0
-    # the projection is the fit at those shape constants: refining can only lower the RSS
-    s = np.array([logs[0]])
-    _, _, rss_kept = varpro(dahl_eq, "dahl", ["theta", "1", "theta_dot", "z", "i*z"], s, False)
-    _, _, rss_refined = varpro(dahl_eq, "dahl", ["theta", "1", "theta_dot", "z", "i*z"], s)
-    assert rss_refined <= rss_kept
-    with pytest.raises(ValueError, match="refine=False needs the shape constants s0"):
-        varpro(dahl_eq, "dahl", ["z"], None, False)
 
 
 def test_n_eff_counts_a_measured_torque_fully(dahl_eq):

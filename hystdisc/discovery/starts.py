@@ -20,7 +20,6 @@ def family_start(
     s0: np.ndarray | None = None,
     one_level: bool = False,
     constant: bool = True,
-    refine: bool = True,
 ) -> tuple[dict[str, float], dict[str, float]]:
     """Stage-1 (equation-error) start of a family's output-error fit.
 
@@ -46,9 +45,6 @@ def family_start(
         Add a constant column when the motion is not imposed (release and forced
         experiments: keeps an offset in the data from corrupting the start: z, integrated
         from 0, would imitate it).
-    refine : bool
-        Search the shape constants from ``s0`` (default); False keeps ``s0`` and fits
-        only the coefficients.
 
     Returns
     -------
@@ -80,10 +76,7 @@ def family_start(
     shape = FAMILY_SHAPE[fam.name]
     if s0 is not None and len(s0) != len(SHAPES[shape].shape_names):
         s0 = None
-    if s0 is None:
-        refine = True  # the grid's best point is always searched from
-    s0 = None if s0 is None else np.asarray(s0, dtype=float)
-    s, c, _ = varpro(eq, shape, terms, s0=s0, refine=refine)
+    s, c, _ = varpro(eq, shape, terms, s0=None if s0 is None else np.asarray(s0, dtype=float))
     coefs, J = coef_dict(eq, terms, c)
     b, n = SHAPES[shape].vector(s)
     hyst = {k: float(v) for k, v in zip(HYSTERESIS_TERM_NAMES, b, strict=True) if v != 0.0}
@@ -109,15 +102,9 @@ def family_starts(
     first: dict[str, float] | None = None,
 ) -> list[tuple[str, dict[str, float]]]:
     """Labelled stage-1 starts of a family's output-error fit: the start from the stage-1
-    shape ``s0`` (:func:`family_start`; ``first`` when the caller already has it), then
-    one from each of up to ``basins`` other basins of the shape's grid
-    (:func:`~hystdisc.discovery.varpro.grid_minima`, at least 1 apart from ``s0`` in the
-    shape's coordinates).
-
-    A basin's start keeps its grid point's shape constants (only the coefficients are
-    fitted there): a local search from it can leave the basin, and on the MR damper set
-    Nelder-Mead took both Bouc-Wen basins to the same point at the grid's bound (33 s of
-    equation-error evaluations for two equal starts).
+    shape ``s0`` (:func:`family_start`; ``first`` when the caller already has it), then one from each of up to ``basins`` other
+    basins of the shape's grid (:func:`~hystdisc.discovery.varpro.grid_minima`, at least 1
+    apart from ``s0`` in the shape's coordinates).
 
     Examples
     --------
@@ -150,7 +137,7 @@ def family_starts(
         if len(out) > basins:
             break
         k += 1
-        p, _ = family_start(eq, family, s0=g, one_level=one_level, refine=False)
+        p, _ = family_start(eq, family, s0=g, one_level=one_level)
         out.append((f"stage-1 basin {k}", p))
     return out
 

@@ -48,18 +48,12 @@ def scaled_lstsq(F: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, float]:
 
 
 def varpro(
-    eq: EqData,
-    shape_name: str,
-    terms: Sequence[str],
-    s0: np.ndarray | None = None,
-    refine: bool = True,
+    eq: EqData, shape_name: str, terms: Sequence[str], s0: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray, float]:
     """Shape constants minimizing the torque-side least-squares residual.
 
     Grid (or ``s0``), then Nelder-Mead on the log residual sum of squares; the torque-side
-    coefficients are projected out by least squares at every evaluation. With
-    ``refine=False`` the shape constants are ``s0`` (clipped) as given: only the
-    coefficients are fitted.
+    coefficients are projected out by least squares at every evaluation.
 
     Parameters
     ----------
@@ -71,8 +65,6 @@ def varpro(
         Torque terms (the design's columns).
     s0 : ndarray, optional
         Start of the local search instead of the shape's grid.
-    refine : bool
-        Search from ``s0`` (default); False keeps ``s0`` (it must be given).
 
     Returns
     -------
@@ -89,12 +81,6 @@ def varpro(
         c, rss = scaled_lstsq(*design.build_flat(eq.z_flat(shape, np.zeros(0)), copy=False))
         return np.zeros(0), c, rss
 
-    if not refine:
-        if s0 is None:
-            raise ValueError("varpro: refine=False needs the shape constants s0")
-        s = shape.clip(np.asarray(s0, dtype=float), eq.scale)
-        c, rss = scaled_lstsq(*design.build_flat(eq.z_flat(shape, s), copy=False))
-        return s, c, rss
     obj = _objective(eq, shape, design)
     grid = [s0] if s0 is not None else shape.grid(eq.scale)
     vals = [obj(s) for s in grid]
