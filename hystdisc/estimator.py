@@ -41,7 +41,7 @@ import sys
 import threading
 import time
 import warnings
-from collections.abc import Callable, Collection, Sequence
+from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -84,6 +84,7 @@ from hystdisc.fitting import (
 )
 from hystdisc.fitting.multistart import (
     best_of_starts,
+    helper_families,
     mapped_starts,
     nesting_pass,
     random_starts,
@@ -120,39 +121,6 @@ def _stderr_printer() -> Callable[[str], None]:
         print(f"[{time.perf_counter() - t0:6.1f} s] {msg}", file=sys.stderr, flush=True)
 
     return say
-
-
-def _helper_families(
-    fits: dict[str, OEFit], good_rms: float, poor: Collection[str] = ()
-) -> dict[str, list[str]]:
-    """For each term family in ``fits`` above ``good_rms`` (or named in ``poor``: at the
-    floor but not predicting held-out runs), its related families (``Family.start_from``,
-    and theirs) that ``fits`` lacks: fitted as its starts only.
-
-    Examples
-    --------
-    >>> from types import SimpleNamespace as NS
-    >>> _helper_families({"bouc-wen": NS(rms=2.0, is_system=False)}, 1.1)
-    {'bouc-wen': ['bouc-wen-std', 'dahl', 'lugre']}
-    >>> _helper_families({"bouc-wen": NS(rms=1.0, is_system=False)}, 1.1)
-    {}
-    >>> _helper_families({"dahl": NS(rms=1.0, is_system=False)}, 1.1, poor={"dahl"})
-    {'dahl': ['lugre']}
-    """
-    out: dict[str, list[str]] = {}
-    for name, fit in fits.items():
-        if name not in FAMILIES or fit.is_system or not (fit.rms > good_rms or name in poor):
-            continue
-        found: list[str] = []
-        todo = [name]
-        while todo:
-            for other in FAMILIES[todo.pop(0)].start_from:
-                if other not in fits and other not in found:
-                    found.append(other)
-                    todo.append(other)
-        if found:
-            out[name] = found
-    return out
 
 
 def _normalization(name: str, start: dict[str, float]) -> tuple[dict[str, float], str]:
@@ -398,19 +366,9 @@ class Discovery(BaseEstimator):
         with ThreadPoolExecutor(max_workers=min(n, len(items))) as pool:
             return list(pool.map(work, items))
 
-    def _map_after(
-        self,
-        before: Callable,
-        before_items: list,
-        after: Callable,
-        after_items: list,
-        serial_before: bool = False,
-    ) -> tuple[list, list]:
-        """``before`` over ``before_items`` and ``after(item, ready)`` over ``after_items``
-        on up to ``n_jobs`` threads (:func:`~hystdisc.simulation.parallel.map_after`: an
-        ``after`` task waits for the ``before`` results it asks ``ready`` for, not for all
-        of them). ``serial_before`` runs the ``before`` tasks in turn first (stage 1's
-        ensemble draws from numpy's global generator)."""
+    def _map_after(self, before, before_items, after, after_items, serial_before=False):
+        """:func:`~hystdisc.simulation.parallel.map_after` on up to ``n_jobs`` threads, each
+        worker ignoring floating-point warnings as :meth:`_map`'s do."""
 
         def quiet(fn):
             def call(*args):
@@ -420,10 +378,7 @@ class Discovery(BaseEstimator):
             return call
 
         n = _n_threads(self.n_jobs)
-        if serial_before or n <= 1:
-            firsts = self._map(before, before_items, serial=True)
-            return firsts, self._map(lambda x: after(x, firsts.__getitem__), after_items)
-        return map_after(quiet(before), before_items, quiet(after), after_items, n)
+        return map_after(quiet(before), before_items, quiet(after), after_items, n, serial_before)
 
     def _shape0(self, name: str) -> np.ndarray | None:
         """The stage-1 shape constants of ``name``'s shape (None before stage 1)."""
@@ -692,7 +647,7 @@ class Discovery(BaseEstimator):
         poor = self._poor_predictions(fd, good, with_heldout) if self.n_starts > 1 else {}
         # a family above the floor whose related families were not asked for (a declared
         # family, a short --families list) gets them fitted too, as its starts only
-        helping = _helper_families(self.family_fits_, good, poor) if self.n_starts > 1 else {}
+        helping = helper_families(self.family_fits_, good, poor) if self.n_starts > 1 else {}
         helpers = list(dict.fromkeys(h for hs in helping.values() for h in hs))
         if helpers:
             say(f"stage 2: {', '.join(helpers)} fitted as starts (not compared)")

@@ -201,7 +201,7 @@ def test_a_lone_familys_starts_are_screened_on_the_threads_with_the_same_answer(
     monkeypatch.setattr(estimator, "best_of_starts", recording)
     monkeypatch.setattr(estimator, "NOISE_RATIO", 0.0)  # every fit is above the "floor"
     # ... and Dahl stays alone (no LuGre fitted as its start)
-    monkeypatch.setattr(estimator, "_helper_families", lambda fits, good, poor=(): {})
+    monkeypatch.setattr(estimator, "helper_families", lambda fits, good, poor=(): {})
     data = generate(Model("dahl", DAHL), currents=(0, 0.5, 1), duration=2, noise=NOISE, seed=5)
     fits = {}
     for jobs in (1, 2):

@@ -43,14 +43,14 @@ True
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 
 import numpy as np
 
 from hystdisc.fitting.data import FitData
 from hystdisc.fitting.output_error import OEFit, OutputErrorFitter
 from hystdisc.fitting.parametrization import FamilySystemParametrization, Parametrization
-from hystdisc.models import RIG_PARAMS, get_family
+from hystdisc.models import FAMILIES, RIG_PARAMS, get_family
 
 #: Levenberg-Marquardt iterations of each start before the best is continued.
 SCREEN_NFEV = 8
@@ -191,6 +191,39 @@ def best_of_starts(
     )
     best.extra["starts"] = rms
     return best
+
+
+def helper_families(
+    fits: dict[str, OEFit], good_rms: float, poor: Collection[str] = ()
+) -> dict[str, list[str]]:
+    """For each term family in ``fits`` above ``good_rms`` (or named in ``poor``: at the
+    floor but not predicting held-out runs), its related families (``Family.start_from``,
+    and theirs) that ``fits`` lacks: fitted as its starts only.
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace as NS
+    >>> helper_families({"bouc-wen": NS(rms=2.0, is_system=False)}, 1.1)
+    {'bouc-wen': ['bouc-wen-std', 'dahl', 'lugre']}
+    >>> helper_families({"bouc-wen": NS(rms=1.0, is_system=False)}, 1.1)
+    {}
+    >>> helper_families({"dahl": NS(rms=1.0, is_system=False)}, 1.1, poor={"dahl"})
+    {'dahl': ['lugre']}
+    """
+    out: dict[str, list[str]] = {}
+    for name, fit in fits.items():
+        if name not in FAMILIES or fit.is_system or not (fit.rms > good_rms or name in poor):
+            continue
+        found: list[str] = []
+        todo = [name]
+        while todo:
+            for other in FAMILIES[todo.pop(0)].start_from:
+                if other not in fits and other not in found:
+                    found.append(other)
+                    todo.append(other)
+        if found:
+            out[name] = found
+    return out
 
 
 def _starts_note(fit: OEFit, note: str) -> None:

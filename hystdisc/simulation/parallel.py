@@ -139,6 +139,7 @@ def map_after(
     after: Callable[[Any, Callable[[int], Any]], Any],
     after_items: Sequence[Any],
     n: int,
+    serial_before: bool = False,
 ) -> tuple[list[Any], list[Any]]:
     """``before`` over ``before_items``, then ``after(item, ready)`` over ``after_items``,
     on ``n`` threads of a pool of their own; ``ready(k)`` waits for the ``k``-th
@@ -147,15 +148,25 @@ def map_after(
     own shape's stage-1 search). The ``before`` tasks are queued first and the pool starts
     its tasks in turn, so a waiting task never holds up one it waits for.
 
+    ``serial_before`` runs the ``before`` tasks in turn on the calling thread first (work
+    that draws from numpy's global generator); ``n <= 1`` runs everything in turn.
     Returns both lists of results, in order (each task is computed as in turn).
 
     Examples
     --------
     >>> map_after(lambda k: k * k, [1, 2, 3], lambda j, ready: ready(j) + 1, [2, 0], 2)
     ([1, 4, 9], [10, 2])
+    >>> map_after(lambda k: k * k, [1, 2, 3], lambda j, ready: ready(j) + 1, [2, 0], 1)
+    ([1, 4, 9], [10, 2])
     """
+    if serial_before or n <= 1:
+        firsts = [before(x) for x in before_items]
+        if n <= 1 or len(after_items) <= 1:
+            return firsts, [after(x, firsts.__getitem__) for x in after_items]
+        with ThreadPoolExecutor(max_workers=n) as pool:
+            return firsts, list(pool.map(lambda x: after(x, firsts.__getitem__), after_items))
     with ThreadPoolExecutor(max_workers=max(1, n)) as pool:
-        firsts = [pool.submit(before, x) for x in before_items]
-        ready = lambda k: firsts[k].result()  # noqa: E731
+        futs = [pool.submit(before, x) for x in before_items]
+        ready = lambda k: futs[k].result()  # noqa: E731
         rest = [pool.submit(after, x, ready) for x in after_items]
-        return [f.result() for f in firsts], [f.result() for f in rest]
+        return [f.result() for f in futs], [f.result() for f in rest]
