@@ -385,11 +385,6 @@ class Discovery(BaseEstimator):
         shape = FAMILY_SHAPE[name]
         return self.stage1_[shape].s if shape in getattr(self, "stage1_", {}) else None
 
-    def _family_start(self, eq: EqData, name: str) -> dict[str, float]:
-        # the stage-1 search of this shape is the natural start (no second grid search)
-        p, _ = family_start(eq, name, s0=self._shape0(name), one_level=self.single_current_)
-        return p
-
     def _family_starts(
         self, eq: EqData, name: str, first: dict[str, float] | None = None
     ) -> list[tuple[str, dict[str, float]]]:
@@ -561,6 +556,13 @@ class Discovery(BaseEstimator):
             fixed = {p: 0.0 for p in FAMILIES[name].current_params} if self.single_current_ else {}
             return FamilyParametrization(name, eq.experiment, start, (), fixed, norm)
 
+        def first_fit(name, s0):
+            """``name`` fitted from its stage-1 start: the search of its shape from the
+            shape's stage-1 constants ``s0`` (no second grid search)."""
+            start, _ = family_start(eq, name, s0=s0, one_level=self.single_current_)
+            par = family_par(name, start)
+            return OutputErrorFitter(fd, par, max_nfev=self.max_nfev).fit(heldout=False)
+
         def family_fit(k, ready):
             """The first fit of family ``k`` from its shape's stage-1 search (``ready``:
             the stage-1 fits, waited for), or (``k = len(fams)``) of the discovered
@@ -576,12 +578,8 @@ class Discovery(BaseEstimator):
                 return OutputErrorFitter(fd, tpar, max_nfev=self.max_nfev).fit(heldout=False)
             name = fams[k]
             shape = FAMILY_SHAPE[name]
-            s0 = ready(shapes.index(shape)).s if shape in shapes else None
             say(f"stage 2: output-error fit of {name} ({k + 1}/{len(fams)})")
-            # the stage-1 search of this shape is the natural start (no second grid search)
-            start, _ = family_start(eq, name, s0=s0, one_level=self.single_current_)
-            par = family_par(name, start)
-            return OutputErrorFitter(fd, par, max_nfev=self.max_nfev).fit(heldout=False)
+            return first_fit(name, ready(shapes.index(shape)).s if shape in shapes else None)
 
         # a family's first fit starts once its shape's stage-1 search has ended, on the
         # threads the other shapes leave free; the ensemble draws from numpy's global
@@ -599,10 +597,6 @@ class Discovery(BaseEstimator):
         }
         self.discovered_name_ = describe_structure(best.terms, best.shape)
         same = same_structure(best)
-
-        def first_fit(name):
-            par = family_par(name, self._family_start(eq, name))
-            return OutputErrorFitter(fd, par, max_nfev=self.max_nfev).fit(heldout=False)
 
         def more_starts(name, mapper=None):
             """The family from its other starts (its stage-1 fit is the first), screened
@@ -651,7 +645,8 @@ class Discovery(BaseEstimator):
         helpers = list(dict.fromkeys(h for hs in helping.values() for h in hs))
         if helpers:
             say(f"stage 2: {', '.join(helpers)} fitted as starts (not compared)")
-            self.family_fits_.update(zip(helpers, self._map(first_fit, helpers), strict=True))
+            fitted = self._map(lambda h: first_fit(h, self._shape0(h)), helpers)
+            self.family_fits_.update(zip(helpers, fitted, strict=True))
         nest = len(self.family_fits_) > 1  # no family ends worse than a model it contains
         if nest:
             self.family_fits_ = nesting_pass(fd, self.family_fits_, self.max_nfev, say)
@@ -689,7 +684,7 @@ class Discovery(BaseEstimator):
         if sys_fams:
             if (base := self.family_fits_.get("bouc-wen-std")) is None:
                 say("stage 2: output-error fit of bouc-wen-std (the start of the system families)")
-                base = first_fit("bouc-wen-std")
+                base = first_fit("bouc-wen-std", self._shape0("bouc-wen-std"))
             for name in sys_fams:
                 self.family_fits_[name] = self._system_fit(name, base, fd, say)
 
