@@ -113,6 +113,17 @@ def _n_threads(n_jobs: int | None) -> int:
     return max(1, int(n_jobs)) if n_jobs is not None else max(1, min(usable_cpus(), MAX_THREADS))
 
 
+def _quiet(fn: Callable) -> Callable:
+    """``fn`` with floating-point warnings ignored (numpy's error state is per thread: a
+    worker thread does not inherit the caller's)."""
+
+    def call(*args):
+        with np.errstate(all="ignore"):
+            return fn(*args)
+
+    return call
+
+
 def _stderr_printer() -> Callable[[str], None]:
     """Progress on stderr as ``[  1.2 s] message`` (the command line's form)."""
     t0 = time.perf_counter()
@@ -355,11 +366,7 @@ class Discovery(BaseEstimator):
         The compiled kernels release the GIL; numpy's error state is per thread, so each
         worker ignores floating-point warnings as the caller does.
         """
-
-        def work(item):
-            with np.errstate(all="ignore"):
-                return fn(item)
-
+        work = _quiet(fn)
         n = _n_threads(self.n_jobs)
         if serial or n <= 1 or len(items) <= 1:
             return [work(x) for x in items]
@@ -369,16 +376,8 @@ class Discovery(BaseEstimator):
     def _map_after(self, before, before_items, after, after_items, serial_before=False):
         """:func:`~hystdisc.simulation.parallel.map_after` on up to ``n_jobs`` threads, each
         worker ignoring floating-point warnings as :meth:`_map`'s do."""
-
-        def quiet(fn):
-            def call(*args):
-                with np.errstate(all="ignore"):
-                    return fn(*args)
-
-            return call
-
         n = _n_threads(self.n_jobs)
-        return map_after(quiet(before), before_items, quiet(after), after_items, n, serial_before)
+        return map_after(_quiet(before), before_items, _quiet(after), after_items, n, serial_before)
 
     def _shape0(self, name: str) -> np.ndarray | None:
         """The stage-1 shape constants of ``name``'s shape (None before stage 1)."""
