@@ -42,6 +42,29 @@ def difference_steps(v: np.ndarray, rel_step: float) -> np.ndarray:
     return np.maximum(steps, 1e-10)
 
 
+def inside_steps(x: np.ndarray, steps: np.ndarray, par: Parametrization) -> np.ndarray:
+    """``steps`` signed and shortened so that ``x + step`` stays inside the bounds of
+    ``par`` (forwards where there is room, else backwards; a step longer than the room on
+    either side shrinks to half the larger room). A difference is never taken at a value
+    the model would refuse as unphysical.
+
+    Examples
+    --------
+    >>> from hystdisc.fitting import FamilySystemParametrization
+    >>> par = FamilySystemParametrization("spencer", "driven", {"n": 9.999})
+    >>> j = par.names.index("n")
+    >>> x = par.x0
+    >>> h = inside_steps(x, np.full(x.size, 5.0), par)
+    >>> bool(par.lower[j] <= x[j] + h[j] <= par.upper[j])
+    True
+    """
+    n = x.size
+    up, down = par.upper - x, x - par.lower
+    h = np.asarray(steps[:n], dtype=float)
+    short = np.where(up >= down, 0.5 * up, -0.5 * down)
+    return np.where(h <= up, h, np.where(h <= down, -h, short))
+
+
 def map_stencil(x: np.ndarray, par: Parametrization) -> Iterator[tuple[int, np.ndarray, float]]:
     """The points and weights of the derivative of a parameter map at ``x``: for each free
     parameter ``j``, two points ``xj`` with weights ``w`` such that ``sum w (f(xj) - f(x))``
@@ -62,9 +85,14 @@ def map_stencil(x: np.ndarray, par: Parametrization) -> Iterator[tuple[int, np.n
     scale = 1e-3 * (np.abs(x).max() + 1e-12)
     for j in range(x.size):
         h = MAP_STEP * max(abs(x[j]), scale)
-        if x[j] + h <= par.upper[j] and x[j] - h >= par.lower[j]:
+        up, down = par.upper[j] - x[j], x[j] - par.lower[j]
+        if 2 * h > max(up, down):
+            # the floor (a share of the largest entry) can exceed a narrow box (an exponent
+            # beside a large dashpot): the step shrinks to fit on the roomier side
+            h = max(up, down) / 4
+        if h <= up and h <= down:
             offs, weights = (h, -h), (0.5 / h, -0.5 / h)
-        elif x[j] + h <= par.upper[j]:
+        elif up >= down:
             offs, weights = (h, 2 * h), (2.0 / h, -0.5 / h)
         else:
             offs, weights = (-h, -2 * h), (-2.0 / h, 0.5 / h)
@@ -213,9 +241,9 @@ def measured_columns(
     if not delays.any():
         return
     y0 = measured_output(t, y, tau, window, step)
-    steps = difference_steps(x, rel_step)
+    steps = inside_steps(x, difference_steps(x, rel_step), par)
     for j in np.flatnonzero(delays):
-        h = steps[j] if x[j] + steps[j] <= par.upper[j] else -steps[j]
+        h = steps[j]
         xj = x.copy()
         xj[j] += h
         yj = measured_output(t, y, delay_of(xj), window, step)
@@ -244,13 +272,12 @@ def difference_jacobian(
     """
     R, k, nnu = data.n_runs, x.size, nu.shape[1]
     steps = difference_steps(np.concatenate([x, nu.ravel()]), rel_step)
+    steps[:k] = inside_steps(x, steps, par)
     tm0 = par.model(x)
     tms = []
     for j in range(k):
         xj = x.copy()
         xj[j] += steps[j]
-        if xj[j] > par.upper[j]:
-            xj[j] -= 2 * steps[j]
         tms.append(par.model(xj))
     offsets = np.cumsum([0] + [int(m.sum()) for m in masks])
     Jm = np.zeros((offsets[-1], k + R * nnu))
@@ -274,6 +301,6 @@ def difference_jacobian(
             if j < 0:
                 base_of[q] = preds[e]
                 continue
-            h = steps[j] if j >= k or x[j] + steps[j] <= par.upper[j] else -steps[j]
+            h = steps[j]
             Jm[offsets[q] : offsets[q + 1], j] = (preds[e] - base_of[q])[masks[q]] / h
     return Jm
