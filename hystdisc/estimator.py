@@ -42,7 +42,6 @@ import threading
 import time
 import warnings
 from collections.abc import Callable, Sequence
-from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 from sklearn.base import BaseEstimator, clone
@@ -71,6 +70,7 @@ from hystdisc.discovery import (
     fit_shape,
 )
 from hystdisc.errors import HystdiscError, HystdiscWarning
+from hystdisc.faults import Failures
 from hystdisc.fitting import (
     MIN_STAGED_LEVELS,
     FamilyParametrization,
@@ -90,7 +90,7 @@ from hystdisc.fitting.multistart import (
     random_starts,
     system_fit,
 )
-from hystdisc.fitting.parametrization import in_torque_units
+from hystdisc.fitting.parametrization import z_scale
 from hystdisc.fitting.prepare import prepare_data
 from hystdisc.fitting.selection import select_family
 from hystdisc.fitting.staged import levels_start
@@ -98,30 +98,13 @@ from hystdisc.models import FAMILIES, format_equation, get_family
 from hystdisc.registry import family_names, get_experiment
 from hystdisc.results import build_results
 from hystdisc.simulation.admissibility import check_admissible
-from hystdisc.simulation.parallel import limit_threads, map_after, usable_cpus
+from hystdisc.simulation.parallel import limit_threads, map_tasks, map_tasks_after
 
-#: Default upper limit of the threads of one discovery.
-MAX_THREADS = 4
 _SAY_LOCK = threading.Lock()
 #: Other basins of a term family's stage-1 grid among its output-error starts.
 GRID_BASINS = 2
 #: Families whose BIC lies within this of the selected one "fit equally well".
 EQUAL_FIT_BIC = 6.0
-
-
-def _n_threads(n_jobs: int | None) -> int:
-    return max(1, int(n_jobs)) if n_jobs is not None else max(1, min(usable_cpus(), MAX_THREADS))
-
-
-def _quiet(fn: Callable) -> Callable:
-    """``fn`` with floating-point warnings ignored (numpy's error state is per thread: a
-    worker thread does not inherit the caller's)."""
-
-    def call(*args):
-        with np.errstate(all="ignore"):
-            return fn(*args)
-
-    return call
 
 
 def _stderr_printer() -> Callable[[str], None]:
@@ -132,22 +115,6 @@ def _stderr_printer() -> Callable[[str], None]:
         print(f"[{time.perf_counter() - t0:6.1f} s] {msg}", file=sys.stderr, flush=True)
 
     return say
-
-
-def _normalization(name: str, start: dict[str, float]) -> tuple[dict[str, float], str]:
-    """Scale of z for the output-error fit of ``name`` started at ``start``.
-
-    Bouc-Wen loops that saturate are fitted with ``z_sat = 1``; loops that never saturate
-    (``beta + gamma <= 0``) have no such scale, so z is taken in torque units
-    (``alpha_1 = 1``) and the start is rescaled to it.
-    """
-    fam = FAMILIES[name]
-    if not name.startswith("bouc-wen"):
-        return start, "z_sat"
-    zs = fam.z_sat(start["delta"], start["beta"], start["gamma"], start["n"])
-    if np.isfinite(zs) and zs > 0:
-        return start, "z_sat"
-    return in_torque_units(name, start), "alpha_1"
 
 
 class Discovery(BaseEstimator):
@@ -293,6 +260,10 @@ class Discovery(BaseEstimator):
         closing loop, the final model, ``results.json`` and ``predict`` carry the laws (a
         saturating law's ``<law>_i0``, a quadratic law's ``<law>_i2`` among the
         parameters).
+    failed_ : dict of str to str
+        The tasks that failed and were dropped (a family, a start, held-out folds, an
+        effect, the staged fit), each with its one-line reason: the run went on without
+        them (``failed`` in ``results.json``).
     results_ : Results
         The ``results.json`` contract.
 
@@ -361,23 +332,9 @@ class Discovery(BaseEstimator):
         return say
 
     def _map(self, fn, items: list, serial: bool = False) -> list:
-        """``fn`` over ``items`` (independent fits) on up to ``n_jobs`` threads, in order.
-
-        The compiled kernels release the GIL; numpy's error state is per thread, so each
-        worker ignores floating-point warnings as the caller does.
-        """
-        work = _quiet(fn)
-        n = _n_threads(self.n_jobs)
-        if serial or n <= 1 or len(items) <= 1:
-            return [work(x) for x in items]
-        with ThreadPoolExecutor(max_workers=min(n, len(items))) as pool:
-            return list(pool.map(work, items))
-
-    def _map_after(self, before, before_items, after, after_items, serial_before=False):
-        """:func:`~hystdisc.simulation.parallel.map_after` on up to ``n_jobs`` threads, each
-        worker ignoring floating-point warnings as :meth:`_map`'s do."""
-        n = _n_threads(self.n_jobs)
-        return map_after(_quiet(before), before_items, _quiet(after), after_items, n, serial_before)
+        """``fn`` over ``items`` (independent fits) on up to ``n_jobs`` threads, in order
+        (:func:`~hystdisc.simulation.parallel.map_tasks`)."""
+        return map_tasks(fn, items, self.n_jobs, serial)
 
     def _shape0(self, name: str) -> np.ndarray | None:
         """The stage-1 shape constants of ``name``'s shape (None before stage 1)."""
@@ -425,10 +382,12 @@ class Discovery(BaseEstimator):
                 out[n] = float(h)
         return out
 
-    def _system_fit(self, name: str, base: OEFit, fd: FitData, say) -> OEFit:
+    def _system_fit(self, name: str, base: OEFit, fd: FitData, say, failures) -> OEFit:
         """A system family from its starts mapped from ``base`` (:func:`system_fit`)."""
         fixed = {p: 0.0 for p in FAMILIES[name].current_params} if self.single_current_ else {}
-        fit = system_fit(name, base, fd, self.max_nfev, fixed, mapper=self._map, say=say)
+        fit = system_fit(
+            name, base, fd, self.max_nfev, fixed, mapper=self._map, say=say, failures=failures
+        )
         if self.heldout:
             fit = OutputErrorFitter(fd, fit.par, max_nfev=self.max_nfev).heldout_at(fit)
         return fit
@@ -476,6 +435,8 @@ class Discovery(BaseEstimator):
             return self._fit(dataset, say)
 
     def _fit(self, dataset: Dataset, say: Callable[[str], None]) -> Discovery:
+        # a task that fails (a family, a start, a fold, an effect) is recorded and dropped
+        failures = Failures()
         if not isinstance(dataset, Dataset):
             raise TypeError("Discovery.fit expects a hystdisc.data.Dataset (see hystdisc.load)")
         if self.model is not None:
@@ -527,7 +488,10 @@ class Discovery(BaseEstimator):
 
         def shape_fit(shape):
             say(f"stage 1: sparse regression with hysteresis shape '{shape}'")
-            return fit_shape(eq, shape, terms, self.threshold, self.ensemble, self.seed)
+            return failures.guard(
+                f"stage 1 shape {shape}",
+                fit_shape, eq, shape, terms, self.threshold, self.ensemble, self.seed,
+            )  # fmt: skip
 
         # stage 2: each family by output error (and the discovered structure when it is not
         # one of them), each fit on its own
@@ -551,42 +515,61 @@ class Discovery(BaseEstimator):
         def family_par(name, start):
             """``name`` started at ``start``: its z scale chosen there, the current terms
             held at 0 at a single current."""
-            start, norm = _normalization(name, start)
+            start, norm = z_scale(name, start)
             fixed = {p: 0.0 for p in FAMILIES[name].current_params} if self.single_current_ else {}
             return FamilyParametrization(name, eq.experiment, start, (), fixed, norm)
 
         def first_fit(name, s0):
             """``name`` fitted from its stage-1 start: the search of its shape from the
-            shape's stage-1 constants ``s0`` (no second grid search)."""
-            start, _ = family_start(eq, name, s0=s0, one_level=self.single_current_)
-            par = family_par(name, start)
-            return OutputErrorFitter(fd, par, max_nfev=self.max_nfev).fit(heldout=False)
+            shape's stage-1 constants ``s0`` (no second grid search); None when it
+            fails (recorded)."""
+
+            def fit():
+                start, _ = family_start(eq, name, s0=s0, one_level=self.single_current_)
+                par = family_par(name, start)
+                return OutputErrorFitter(fd, par, max_nfev=self.max_nfev).fit(heldout=False)
+
+            return failures.guard(name, fit)
 
         def family_fit(k, ready):
             """The first fit of family ``k`` from its shape's stage-1 search (``ready``:
             the stage-1 fits, waited for), or (``k = len(fams)``) of the discovered
             structure when no family has it."""
             if k == len(fams):
-                best = min((ready(j) for j in range(len(shapes))), key=lambda f: f.bic)
+                done = [f for f in (ready(j) for j in range(len(shapes))) if f is not None]
+                if not done:
+                    return None
+                best = min(done, key=lambda f: f.bic)
                 if same_structure(best):
                     return None
                 say("stage 2: output-error fit of the discovered structure")
                 tpar = TermParametrization(
                     best.terms, best.shape, best.coefs, best.s, best.J, eq.experiment
                 )
-                return OutputErrorFitter(fd, tpar, max_nfev=self.max_nfev).fit(heldout=False)
+                return failures.guard(
+                    "discovered structure",
+                    OutputErrorFitter(fd, tpar, max_nfev=self.max_nfev).fit,
+                    heldout=False,
+                )
             name = fams[k]
             shape = FAMILY_SHAPE[name]
             say(f"stage 2: output-error fit of {name} ({k + 1}/{len(fams)})")
-            return first_fit(name, ready(shapes.index(shape)).s if shape in shapes else None)
+            own = ready(shapes.index(shape)) if shape in shapes else None
+            return first_fit(name, None if own is None else own.s)
 
         # a family's first fit starts once its shape's stage-1 search has ended, on the
         # threads the other shapes leave free; the ensemble draws from numpy's global
         # generator: one shape after the other
-        fits, firsts = self._map_after(
-            shape_fit, shapes, family_fit, list(range(len(fams) + 1)), self.ensemble
+        fits, firsts = map_tasks_after(
+            shape_fit, shapes, family_fit, list(range(len(fams) + 1)), self.n_jobs, self.ensemble
         )
-        self.stage1_ = dict(zip(shapes, fits, strict=True))
+        self.stage1_ = {s: f for s, f in zip(shapes, fits, strict=True) if f is not None}
+        if not self.stage1_:
+            raise HystdiscError(
+                f"{dataset.source}: stage 1 failed for every hysteresis shape ("
+                + "; ".join(f"{k}: {v}" for k, v in failures.items().items())
+                + "); fix: check that the runs move and the output responds to the motion"
+            )
         best = min(self.stage1_.values(), key=lambda f: f.bic)
         self.discovered_shape_ = best.shape
         self.discovered_ = best.term_model()
@@ -615,24 +598,26 @@ class Discovery(BaseEstimator):
                     pars.append((label, family_par(name, reading)))
             # a first start at the floor that predicts poorly is not trusted (no good_rms)
             good = None if name in poor else NOISE_RATIO * fd.noise_std
-            return best_of_starts(
-                fd,
-                pars,
-                self.max_nfev,
-                mapper=mapper,
-                say=say,
-                name=name,
-                good_rms=good,
-                first=first,
-            )
+            found = failures.guard(
+                f"{name} more starts",
+                best_of_starts,
+                fd, pars, self.max_nfev, mapper=mapper, say=say, name=name, good_rms=good,
+                first=first, failures=failures,
+            )  # fmt: skip
+            return first if found is None else found  # its first fit stands
 
         def with_heldout(name):
             fit = self.family_fits_[name]
             if not self.heldout or fit.heldout_rms is not None:
                 return fit
-            return OutputErrorFitter(fd, fit.par, max_nfev=self.max_nfev).heldout_at(fit)
+            fitter = OutputErrorFitter(fd, fit.par, max_nfev=self.max_nfev)
+            found = failures.guard(f"{name} held-out folds", fitter.heldout_at, fit)
+            return fit if found is None else found  # no held-out error: said in failed
 
-        self.family_fits_: dict[str, OEFit] = dict(zip(fams, firsts, strict=False))
+        # a family whose first fit failed is dropped (its reason is in failed_)
+        pairs = [(n, f) for n, f in zip(fams, firsts, strict=False) if f is not None]
+        fams, same = [n for n, _ in pairs], [n for n in same if n in dict(pairs)]
+        self.family_fits_: dict[str, OEFit] = dict(pairs)
         good = NOISE_RATIO * fd.noise_std
         # a first fit at the floor that does not predict the held-out runs is no proof of
         # the optimum: a seed-form Bouc-Wen at 1.009x the noise with n = 0.01 predicted
@@ -645,10 +630,14 @@ class Discovery(BaseEstimator):
         if helpers:
             say(f"stage 2: {', '.join(helpers)} fitted as starts (not compared)")
             fitted = self._map(lambda h: first_fit(h, self._shape0(h)), helpers)
-            self.family_fits_.update(zip(helpers, fitted, strict=True))
+            self.family_fits_.update(
+                (h, f) for h, f in zip(helpers, fitted, strict=True) if f is not None
+            )
         nest = len(self.family_fits_) > 1  # no family ends worse than a model it contains
         if nest:
-            self.family_fits_ = nesting_pass(fd, self.family_fits_, self.max_nfev, say)
+            self.family_fits_ = nesting_pass(
+                fd, self.family_fits_, self.max_nfev, say, failures=failures
+            )
         # every family still above the noise is fitted from more starts: however far it is
         # from the best family, it may be the true one in a wrong basin (a Bingham release
         # on an encoder stopped at 4.9x LuGre's RMS from stage 1's start and reached the
@@ -665,7 +654,7 @@ class Discovery(BaseEstimator):
         if nest and more:
             # after the starts: a family still above the floor screens the mapped optima too
             self.family_fits_ = nesting_pass(
-                fd, self.family_fits_, self.max_nfev, say, screen_above=good
+                fd, self.family_fits_, self.max_nfev, say, screen_above=good, failures=failures
             )
         for name, heldout_rms in poor.items():
             self.family_fits_[name].notes.append(
@@ -679,13 +668,31 @@ class Discovery(BaseEstimator):
                 "too, their optima as further starts (not compared)"
             )
         self.family_fits_ = dict(zip(fams, self._map(with_heldout, fams), strict=True))
-        self.discovered_fit_ = self.family_fits_[same[0]] if same else firsts[-1]
         if sys_fams:
             if (base := self.family_fits_.get("bouc-wen-std")) is None:
                 say("stage 2: output-error fit of bouc-wen-std (the start of the system families)")
                 base = first_fit("bouc-wen-std", self._shape0("bouc-wen-std"))
             for name in sys_fams:
-                self.family_fits_[name] = self._system_fit(name, base, fd, say)
+                fit = None
+                if base is None:
+                    failures.record(name, "no start: the bouc-wen-std fit its starts map failed")
+                else:
+                    fit = failures.guard(name, self._system_fit, name, base, fd, say, failures)
+                if fit is not None:
+                    self.family_fits_[name] = fit
+        if not self.family_fits_:
+            raise HystdiscError(
+                f"{dataset.source}: every family failed ("
+                + "; ".join(f"{k}: {v}" for k, v in failures.items().items())
+                + "); fix: check the data (hystdisc report shows them) or name other families"
+            )
+        self.discovered_fit_ = (
+            self.family_fits_[same[0]]
+            if same
+            else firsts[-1]
+            if firsts[-1] is not None
+            else min(self.family_fits_.values(), key=lambda f: f.bic)
+        )
 
         self.envelope_ = Envelope.from_runs(fd.names, fd.t, fd.theta, fd.theta_dot, fd.currents)
         self.admissibility_ = {
@@ -701,8 +708,10 @@ class Discovery(BaseEstimator):
         self.staged_ = None
         n_levels = distinct_currents(fd.currents).size
         if self.staged and n_levels >= MIN_STAGED_LEVELS:
-            self.staged_ = staged_fit(fd, selected, self.max_nfev, self.heldout, say)
-            if self.staged_.changed:
+            self.staged_ = failures.guard(
+                "staged fit", staged_fit, fd, selected, self.max_nfev, self.heldout, say
+            )
+            if self.staged_ is not None and self.staged_.changed:
                 # the chosen laws predict the held-out conditions better: they are the
                 # selected family's model from here on (loop, results.json, predict)
                 selected = self.staged_.joint
@@ -718,20 +727,22 @@ class Discovery(BaseEstimator):
         self.loop_: LoopResult | None = None
         if self.close_loop:
             restart = shift_restart(dataset, self._fit_family, say, min_shift=fd.noise_std)
-            self.loop_ = self._close_loop(selected, eq, fd, say, restart)
+            self.loop_ = self._close_loop(selected, eq, fd, say, restart, failures)
         self.reselection_: Reselection | None = None
         self.reduction_: Reduction | None = None
         bics = {n: f.bic for n, f in self.family_fits_.items()}
         # the staged laws belong to the selected family alone: no other family replaces it
         staged_changed = self.staged_ is not None and self.staged_.changed
         if self.model is None and len(fams) > 1 and not staged_changed and self.loop_ is not None:
-            close = lambda fit: self._close_loop(fit, eq, fd, say, restart)  # noqa: E731
+            close = lambda fit: self._close_loop(fit, eq, fd, say, restart, failures)  # noqa: E731
             ctx = Context(fd, eq, self.envelope_, close, self._stage1_shape, self.max_nfev,
                           self.heldout, self._map, say)  # fmt: skip
-            again = compare_again({n: self.family_fits_[n] for n in fams}, self.family_,
-                                  self.loop_, ctx)  # fmt: skip
-            self.reselection_, self.reduction_ = again.reselection, again.reduction
-            if again.bics is not None:  # the outliers stay as the first selection confirmed them
+            again = failures.guard("comparison with the effects", compare_again,
+                                   {n: self.family_fits_[n] for n in fams}, self.family_,
+                                   self.loop_, ctx)  # fmt: skip
+            if again is not None:
+                self.reselection_, self.reduction_ = again.reselection, again.reduction
+            if again is not None and again.bics is not None:  # outliers as first confirmed
                 self.family_, self.selection_note_ = again.family, again.note
                 self.loop_, bics = again.loop, again.bics
                 selected = self.family_fits_[self.family_]
@@ -758,6 +769,7 @@ class Discovery(BaseEstimator):
                 HystdiscWarning,
                 stacklevel=2,
             )
+        self.failed_ = failures.items()
         self.results_ = build_results(self, dataset)
         return self
 
@@ -775,7 +787,7 @@ class Discovery(BaseEstimator):
             return None
 
     def _close_loop(
-        self, selected: OEFit, eq: EqData, fd: FitData, say, restart=None
+        self, selected: OEFit, eq: EqData, fd: FitData, say, restart=None, failures=None
     ) -> LoopResult:
         say("closing the loop: residual -> catalogued effects")
         return close_loop(
@@ -791,6 +803,7 @@ class Discovery(BaseEstimator):
             decided=self._decided_by_staged(),
             noise_samples=self.noise_.samples,
             restart=restart,
+            failures=failures,
         )
 
     def _select(self) -> tuple[str, str | None]:

@@ -211,6 +211,8 @@ NEW_FAMILY = ["admissible", "violations"]
 NEW_TOP += ["noise", "encoder"]
 #: The outliers screen (issue 16 item 4; a free key): after them.
 NEW_TOP += ["outliers"]
+#: The tasks that failed and were dropped (issue 33 item 1; a free key): after them.
+NEW_TOP += ["failed"]
 NEW_RESIDUAL = ["whiteness_test", "ljung_box_p"]
 
 

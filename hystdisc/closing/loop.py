@@ -86,6 +86,7 @@ from hystdisc.closing.scores import EffectScore, score_effects, wald_chi2
 from hystdisc.closing.structural import refit_structural, score_structural
 from hystdisc.data.envelope import Envelope
 from hystdisc.errors import HystdiscError, HystdiscWarning
+from hystdisc.faults import Failures, reason_of
 from hystdisc.fitting import (
     FamilyParametrization,
     FamilySystemParametrization,
@@ -310,8 +311,13 @@ class _Round:
         envelope,
         stage1=None,
         restart=None,
+        failures: Failures | None = None,
     ):
         self.data = data
+        #: where a refit that fails is recorded (``"effect <name>"``); None: it raises
+        self.failures = failures
+        #: the effects whose refit failed this round (not tried again)
+        self.failed: set[str] = set()
         #: ``restart(effect, values, par)`` (:data:`Restart`), or None
         self.restart = restart
         #: effects already refitted from a restart this round (one restart each)
@@ -331,6 +337,18 @@ class _Round:
         self.results: dict[str, tuple[OEFit, dict]] = {}
 
     def attempt(self, s: EffectScore, start: dict | None = None, restarted: bool = False) -> None:
+        """:meth:`refit` guarded: a refit that fails is recorded in :attr:`failures` (when
+        given) as ``effect <name>``, the effect is not tried again, and the loop goes on."""
+        if self.failures is None:
+            self.refit(s, start, restarted)
+            return
+        before = len(self.failures)
+        self.failures.guard(f"effect {s.name}", self.refit, s, start, restarted)
+        if len(self.failures) > before:
+            self.failed.add(s.name)
+            self.say(f"closing the loop: the refit with {s.name} failed and is dropped")
+
+    def refit(self, s: EffectScore, start: dict | None = None, restarted: bool = False) -> None:
         """Refit the current model plus ``s``'s effect and record the outcome.
 
         A refit that passes every test but the held-out one may sit in a basin that fits
@@ -537,6 +555,7 @@ def augment(
     decided: dict[str, str] | None = None,
     noise_samples: list[np.ndarray] | None = None,
     restart: Restart | None = None,
+    failures: Failures | None = None,
 ) -> LoopResult:
     """Diagnose, add the effects that improve BIC, and test the final residual.
 
@@ -585,6 +604,9 @@ def augment(
         ``restart(effect, refit)``: a full start of the model plus ``effect`` made
         without the current optimum (see :data:`Restart`), for a refit that fits better
         but does not predict the held-out data; None when there is none.
+    failures : Failures, optional
+        Where an effect whose refit fails is recorded (``effect <name>``): the effect is
+        dropped and the loop goes on (without it, such a failure raises).
 
     Returns
     -------
@@ -636,8 +658,9 @@ def augment(
                 return s.start
 
         rnd = _Round(
-            data, current, round_no, max_nfev, heldout, noise_std, say, envelope, stage1, restart
-        )
+            data, current, round_no, max_nfev, heldout, noise_std, say, envelope, stage1, restart,
+            failures,
+        )  # fmt: skip
         screened = False
         if eq is not None and current.rms > FAR_RATIO * noise_std:
             rnd.screen(eq, scores, diag, s0)  # far from the noise: the global view first
@@ -649,6 +672,7 @@ def augment(
         if not rnd.done() and not screened and eq is not None and current.rms > good_rms:
             rnd.screen(eq, scores, diag, s0)
         results = rnd.results
+        rejected |= rnd.failed - set(results)
         w = rnd.best()
         for _, step in results.values():
             acceptable = _acceptable(step)
@@ -738,11 +762,14 @@ def close_loop(
     decided: dict[str, str] | None = None,
     noise_samples: list[np.ndarray] | None = None,
     restart: Restart | None = None,
+    failures: Failures | None = None,
 ) -> LoopResult:
     """Close the loop on the fit of the selected (or declared) family.
 
     Runs :func:`augment`; when it fails (a singular Jacobian, a refit that cannot start),
-    warns and returns the fit as it is with the verdict on its residual.
+    warns (or, given ``failures``, records it there as ``closing loop``) and returns the
+    fit as it is with the verdict on its residual. An effect whose refit fails is dropped
+    alone when ``failures`` is given (see :func:`augment`).
 
     Parameters
     ----------
@@ -798,14 +825,23 @@ def close_loop(
             decided=decided,
             noise_samples=noise_samples,
             restart=restart,
+            failures=failures,
         )
-    except (HystdiscError, np.linalg.LinAlgError, ValueError, FloatingPointError) as exc:
+    except Exception as exc:  # noqa: BLE001 - with failures given, every failure is isolated
+        expected = (HystdiscError, np.linalg.LinAlgError, ValueError, FloatingPointError)
+        if failures is None and not isinstance(exc, expected):
+            raise
         name = getattr(getattr(fit.par, "family", None), "name", "the fit")
-        warnings.warn(
-            f"closing the loop failed ({exc}); the residual of {name} is reported without effects",
-            HystdiscWarning,
-            stacklevel=2,
-        )
+        if failures is not None:
+            failures.record("closing loop", f"{reason_of(exc)}; the residual of {name} is "
+                            "reported without effects")  # fmt: skip
+        else:
+            warnings.warn(
+                f"closing the loop failed ({exc}); the residual of {name} is reported "
+                "without effects",
+                HystdiscWarning,
+                stacklevel=2,
+            )
     loop = LoopResult(base=fit, fit=fit)
     noise = max(float(noise_std), accuracy_floor(data))
     loop.residual, loop.unexplained, loop.unexplained_text = assess_residual(

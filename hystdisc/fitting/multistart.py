@@ -47,6 +47,8 @@ from collections.abc import Callable, Collection, Mapping, Sequence
 
 import numpy as np
 
+from hystdisc.errors import HystdiscError
+from hystdisc.faults import Failures
 from hystdisc.fitting.data import FitData
 from hystdisc.fitting.output_error import OEFit, OutputErrorFitter
 from hystdisc.fitting.parametrization import FamilySystemParametrization, Parametrization
@@ -86,6 +88,7 @@ def best_of_starts(
     name: str = "",
     good_rms: float | None = None,
     first: OEFit | None = None,
+    failures: Failures | None = None,
 ) -> OEFit:
     """The best fit of several starts (see the module docstring).
 
@@ -116,22 +119,45 @@ def best_of_starts(
     first : OEFit, optional
         The first start's fit to convergence, when it is already made (it is then not
         refitted, and is the lead whatever ``good_rms``).
+    failures : Failures, optional
+        Where a start whose fit fails is recorded (``"<name> start '<label>'"``); the
+        other starts go on. Without it a start's failure raises.
 
     Returns
     -------
     OEFit
         The best fit (no held-out error: ask :meth:`OutputErrorFitter.heldout_at`), with
         the note on the starts and ``extra["starts"]`` (label -> RMS).
+
+    Raises
+    ------
+    HystdiscError
+        When every start failed (the reasons are in ``failures``).
     """
     if not starts:
         raise ValueError("best_of_starts needs at least one start")
+    guard = Failures() if failures is None else failures
+    strict = failures is None
+
+    def fitted(k: int, par: Parametrization) -> OEFit | None:
+        """Start ``k`` (or its continuation ``par``) fitted to convergence, or None."""
+        task = f"{name} start '{starts[k][0]}'"
+        with np.errstate(all="ignore"):
+            if strict:
+                return OutputErrorFitter(data, par, max_nfev=max_nfev).fit(heldout=False)
+            return guard.guard(
+                task, lambda: OutputErrorFitter(data, par, max_nfev=max_nfev).fit(heldout=False)
+            )
+
     if len(starts) == 1:
-        return OutputErrorFitter(data, starts[0][1], max_nfev=max_nfev).fit(heldout=False)
+        only = fitted(0, starts[0][1])
+        if only is None:
+            raise HystdiscError(f"{name}: its only start failed (listed under failed)")
+        return only
     labels = [label for label, _ in starts]
     lead = first
     if lead is None and good_rms is not None:
-        with np.errstate(all="ignore"):
-            lead = OutputErrorFitter(data, starts[0][1], max_nfev=max_nfev).fit(heldout=False)
+        lead = fitted(0, starts[0][1])
     if lead is not None and good_rms is not None:
         if lead.rms <= good_rms:
             _starts_note(
@@ -145,7 +171,13 @@ def best_of_starts(
     def one(k: int) -> tuple[np.ndarray, float]:
         label, par = starts[k]
         say(f"stage 2: output-error fit of {name}, start {k + 1}/{len(starts)} ({label})")
-        return OutputErrorFitter(data, par, max_nfev=screen_nfev).screen(screen_nfev)
+        if strict:
+            return OutputErrorFitter(data, par, max_nfev=screen_nfev).screen(screen_nfev)
+        out = guard.guard(
+            f"{name} start '{label}'",
+            lambda: OutputErrorFitter(data, par, max_nfev=screen_nfev).screen(screen_nfev),
+        )
+        return (par.x0, float("inf")) if out is None else out
 
     run = list(range(1 if lead is not None else 0, len(starts)))
     screened = list((mapper or (lambda f, it: [f(i) for i in it]))(one, run))
@@ -156,17 +188,22 @@ def best_of_starts(
     pick = int(np.argmin([rss for _, rss in screened]))
     k_pick = run[pick]
     x_pick = screened[pick][0]
+    best = lead
     if lead is None or screened[pick][1] < lead.rss:
         # the best screened start is continued (given a converged first start, only when
         # its screen already fits better: a basin the first start did not reach)
         say(f"stage 2: output-error fit of {name} from its best start ({labels[k_pick]})")
         par0 = starts[k_pick][1]
         par = par0.like(par0.params(x_pick), par0.effects)
-        with np.errstate(all="ignore"):
-            best = OutputErrorFitter(data, par, max_nfev=max_nfev).fit(heldout=False)
-        rms[labels[k_pick]] = float(best.rms)
-    else:
-        best = lead
+        cont = fitted(k_pick, par)
+        if cont is not None:
+            best = cont
+            rms[labels[k_pick]] = float(best.rms)
+    if best is None:
+        raise HystdiscError(
+            f"{name}: every start failed or diverged ({len(starts)} starts); the reasons "
+            "are listed under failed"
+        )
     if lead is not None:
         rms[labels[0]] = float(lead.rms)
         if lead.rss < best.rss:
@@ -313,6 +350,7 @@ def nesting_pass(
     say: Say = _quiet,
     passes: int = NESTING_PASSES,
     screen_above: float | None = None,
+    failures: Failures | None = None,
 ) -> dict[str, OEFit]:
     """Refit each family from another family's optimum when that optimum, mapped into it,
     fits better than its own (see the module docstring); repeated while a pass changes a
@@ -321,13 +359,18 @@ def nesting_pass(
     screens the mapped optima of the families at or below it with no more parameters,
     when they start worse than its own.
     Returns the updated fits (the same objects where nothing changed); each refit carries
-    a note."""
+    a note. With ``failures``, a refit that fails is recorded there
+    (``"<name> nesting refit"``) and the family keeps its fit."""
     out = dict(fits)
     screened: set[tuple] = set()  # (family, other, their RSS): the pairs already screened
     for _ in range(passes):
         changed = False
         for name in list(out):
-            new = _nested_refit(data, out, name, max_nfev, say, screen_above, screened)
+            args = (data, out, name, max_nfev, say, screen_above, screened)
+            if failures is None:
+                new = _nested_refit(*args)
+            else:
+                new = failures.guard(f"{name} nesting refit", _nested_refit, *args)
             if new is not None:
                 out[name], changed = new, True
         if not changed:
@@ -408,6 +451,7 @@ def system_fit(
     fixed: Mapping[str, float] | None = None,
     mapper: Callable | None = None,
     say: Say = _quiet,
+    failures: Failures | None = None,
 ) -> OEFit:
     """A state-space family by output error from each of its starts, mapped from a term
     family's fit ``base`` (the standard Bouc-Wen one: ``Family.starts``); the best is
@@ -429,6 +473,8 @@ def system_fit(
         ``map``-like runner of the starts (threads).
     say : callable
         Progress messages.
+    failures : Failures, optional
+        Where a failed start is recorded (see :func:`best_of_starts`).
 
     Returns
     -------
@@ -448,5 +494,6 @@ def system_fit(
         for label, st in starts
     ]
     return best_of_starts(
-        data, pars, max_nfev, SYSTEM_START_NFEV, mapper=mapper, say=say, name=name
-    )
+        data, pars, max_nfev, SYSTEM_START_NFEV, mapper=mapper, say=say, name=name,
+        failures=failures,
+    )  # fmt: skip

@@ -437,3 +437,26 @@ def in_torque_units(family: str, params: dict[str, float]) -> dict[str, float]:
         q["alpha_2"] = params.get("alpha_2", 0.0) / a
     q["alpha_1"] = 1.0
     return q
+
+
+def z_scale(family: str, start: dict[str, float]) -> tuple[dict[str, float], str]:
+    """The scale of z for the output-error fit of ``family`` started at ``start``: the
+    start (rescaled when needed) and the normalization of :class:`FamilyParametrization`.
+
+    Bouc-Wen loops that saturate are fitted with ``z_sat = 1``; loops that never saturate
+    (``beta + gamma <= 0``) have no such scale, so z is taken in torque units
+    (``alpha_1 = 1``) and the start is rescaled to it (:func:`in_torque_units`).
+
+    Examples
+    --------
+    >>> p = {"alpha_1": 2.0, "alpha_2": 1.0, "delta": 3.0, "beta": -2.0, "gamma": 1.0, "n": 1.0}
+    >>> z_scale("bouc-wen", p)[1], z_scale("dahl", {})[1]
+    ('alpha_1', 'z_sat')
+    """
+    fam = get_family(family)
+    if not fam.name.startswith("bouc-wen"):
+        return start, "z_sat"
+    zs = fam.z_sat(start["delta"], start["beta"], start["gamma"], start["n"])
+    if np.isfinite(zs) and zs > 0:
+        return start, "z_sat"
+    return in_torque_units(fam.name, start), "alpha_1"

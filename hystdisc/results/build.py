@@ -283,6 +283,8 @@ def build_results(disc: Any, dataset: Any) -> Results:
     outliers = getattr(disc, "outliers_", None)
     if outliers is not None:  # the isolated glitches left out of the fits
         data["outliers"] = outliers.to_dict()
+    # the tasks that failed and were dropped (the run went on without them)
+    data["failed"] = dict(getattr(disc, "failed_", {}))
     reselection = getattr(disc, "reselection_", None)
     if reselection is not None:  # the families compared again with the rig's effects
         data["reselection"] = reselection.to_dict()

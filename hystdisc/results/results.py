@@ -207,6 +207,11 @@ class Results(Record):
         ``heldout_rms`` and ``bic``, whether the selection ``switched`` to it, the final
         models' held-out RMS and BIC (``final_heldout``, ``final_bic``) and a ``note``
         (:class:`hystdisc.closing.reduction.Reduction`).
+    failed : dict of str to str
+        The tasks of the discovery that failed and were dropped, each with its one-line
+        reason (a family, ``<family> start '<label>'``, ``<family> held-out folds``,
+        ``effect <name>``, ``staged fit``...): the run went on without them. Empty when
+        nothing failed (absent in files written before it).
     extra : dict
         Keys this version does not know (kept on a round trip).
     """
@@ -258,6 +263,7 @@ class Results(Record):
     outliers: dict[str, Any] | None = None
     reselection: dict[str, Any] | None = None
     reduction: dict[str, Any] | None = None
+    failed: dict[str, str] = field(default_factory=dict)
     extra: dict[str, Any] = field(default_factory=dict, repr=False)
 
     # ----------------------------------------------------------------- JSON

@@ -238,6 +238,7 @@ def report(res: Results) -> str:
         "",
         "Families (output error; * selected):",
         family_table(res),
+        *failed_lines(res),
     ]
     if res.equal_fits:
         out.append(
@@ -259,6 +260,25 @@ def report(res: Results) -> str:
     out += _residual_lines(res)
     out += outlier_lines(res)
     return "\n".join(out)
+
+
+def failed_lines(res: Results) -> list[str]:
+    """The tasks that failed and were dropped, one line each (none: nothing).
+
+    Examples
+    --------
+    >>> from hystdisc.results import Results
+    >>> r = Results(failed={"spencer": "the simulation diverged at every start"})
+    >>> for line in failed_lines(r):
+    ...     print(line)
+    Failed and dropped (the run went on without them):
+      spencer: the simulation diverged at every start
+    """
+    if not res.failed:
+        return []
+    return ["Failed and dropped (the run went on without them):"] + [
+        f"  {name}: {reason}" for name, reason in res.failed.items()
+    ]
 
 
 def outlier_lines(res: Results) -> list[str]:
@@ -322,6 +342,9 @@ def html_summary(res: Results) -> str:
     cd = res.current_dependence
     if cd and not cd.get("identifiable", True):
         eff_html += f"<br><b>Current dependence not identifiable:</b> {e(str(cd.get('note')))}"
+    if res.failed:
+        items = "".join(f"<li>{e(k)}: {e(v)}</li>" for k, v in res.failed.items())
+        eff_html += f"<br><b>Failed and dropped</b><ul>{items}</ul>"
     return (
         f"<div><b>hystdisc</b> — {e(str(res.input))} ({e(str(res.experiment))})<br>"
         f"<b>Discovered:</b> {e(disc.name if disc else '')}<br><code>{eq}</code>"

@@ -170,3 +170,50 @@ def map_after(
         ready = lambda k: futs[k].result()  # noqa: E731
         rest = [pool.submit(after, x, ready) for x in after_items]
         return [f.result() for f in futs], [f.result() for f in rest]
+
+
+def job_threads(n_jobs: int | None) -> int:
+    """Threads of one discovery's independent fits: ``n_jobs``, else the usable CPUs (at
+    most :data:`MAX_THREADS`)."""
+    if n_jobs is not None:
+        return max(1, int(n_jobs))
+    return max(1, min(usable_cpus(), MAX_THREADS))
+
+
+def _quiet(fn: Callable) -> Callable:
+    """``fn`` with floating-point warnings ignored (numpy's error state is per thread: a
+    worker thread does not inherit the caller's)."""
+
+    def call(*args):
+        with np.errstate(all="ignore"):
+            return fn(*args)
+
+    return call
+
+
+def map_tasks(fn: Callable, items: Sequence[Any], n_jobs: int | None, serial: bool = False) -> list:
+    """``fn`` over ``items`` (independent fits) on up to :func:`job_threads` threads, in
+    order, each worker ignoring floating-point warnings (the compiled kernels release the
+    GIL).
+
+    Examples
+    --------
+    >>> map_tasks(lambda k: k + 1, [1, 2, 3], n_jobs=2)
+    [2, 3, 4]
+    """
+    work = _quiet(fn)
+    n = job_threads(n_jobs)
+    if serial or n <= 1 or len(items) <= 1:
+        return [work(x) for x in items]
+    with ThreadPoolExecutor(max_workers=min(n, len(items))) as pool:
+        return list(pool.map(work, items))
+
+
+def map_tasks_after(
+    before: Callable, before_items: Sequence[Any], after: Callable, after_items: Sequence[Any],
+    n_jobs: int | None, serial_before: bool = False,
+) -> tuple[list[Any], list[Any]]:  # fmt: skip
+    """:func:`map_after` on :func:`job_threads` threads, each worker ignoring
+    floating-point warnings as :func:`map_tasks`'s do."""
+    n = job_threads(n_jobs)
+    return map_after(_quiet(before), before_items, _quiet(after), after_items, n, serial_before)
