@@ -162,3 +162,32 @@ def test_spencer_fit_on_a_new_users_driven_set_does_not_crash():
     sp = d.family_fits_["spencer"]
     assert sp.heldout_rms is not None and sp.heldout_rms < 1.1 * d.noise_std_
     assert np.all(sp.x >= sp.par.lower) and np.all(sp.x <= sp.par.upper)
+
+
+def test_a_fold_that_diverges_is_refitted_fully_before_the_fit_is_called_unstable(
+    dahl_data, monkeypatch
+):
+    """The quick fold estimate (a Gauss-Newton step and two iterations) can leave the
+    stable region on its own; the fold is then fitted fully from the joint optimum."""
+    d = Discovery(families=["dahl"], close_loop=False, heldout=False).fit(dahl_data)
+    fit = d.family_fits_["dahl"]
+    fitter = OutputErrorFitter(d.fit_data_, fit.par, max_nfev=20)
+    reference = fitter.heldout_at(fit).heldout_rms
+    calls: list[bool] = []
+    real_refit, real_predict = OutputErrorFitter._fold_refit, OutputErrorFitter._predict_fold
+
+    def fold_refit(self, fold, v, rss, full=False):
+        calls.append(full)
+        return real_refit(self, fold, v, rss, full)
+
+    def predict(self, x, fold, nu):
+        out, st = real_predict(self, x, fold, nu)
+        quick = not calls[-1]
+        return out, [True] * len(st) if quick else st  # every quick estimate "diverges"
+
+    monkeypatch.setattr(OutputErrorFitter, "_fold_refit", fold_refit)
+    monkeypatch.setattr(OutputErrorFitter, "_predict_fold", predict)
+    again = OutputErrorFitter(d.fit_data_, fit.par, max_nfev=20).heldout_at(fit)
+    assert calls.count(True) == calls.count(False) == len(d.fit_data_.folds())
+    assert again.heldout_rms is not None
+    assert abs(again.heldout_rms / reference - 1) < 0.02  # the full refit predicts as well

@@ -548,14 +548,18 @@ class OutputErrorFitter:
             out[: self.npar] = (x - lo <= tol) | (hi - x <= tol)
         return out
 
-    def _fold_refit(self, fold: list[int], v_gn: np.ndarray, rss_gn: float) -> np.ndarray:
+    def _fold_refit(
+        self, fold: list[int], v_gn: np.ndarray, rss_gn: float | None, full: bool = False
+    ) -> np.ndarray:
         """The parameters fitted without the runs ``fold``: the Gauss-Newton estimate
         ``v_gn`` when the other runs' RSS there is its linear prediction ``rss_gn`` (within
         :data:`HELDOUT_GN_TRUST` noise variances), else :data:`HELDOUT_STEPS`
         Levenberg-Marquardt iterations on the other runs from it (the linear step alone
-        misjudges a fold that moves the fit far)."""
+        misjudges a fold that moves the fit far). ``full``: a complete fit on the other
+        runs from ``v_gn`` (up to ``max_nfev`` iterations; ``rss_gn`` is not used), for a
+        fold whose quick estimate did not predict it."""
         x = np.clip(v_gn[: self.npar], self.par.lower, self.par.upper)
-        if HELDOUT_STEPS < 1:
+        if HELDOUT_STEPS < 1 and not full:
             return x
         train = [r for r in range(self.data.n_runs) if r not in fold]
         sub = OutputErrorFitter(
@@ -565,7 +569,7 @@ class OutputErrorFitter:
         v0 = np.concatenate([x, nu[train].ravel()])
         with np.errstate(all="ignore"):
             r0 = sub.residuals(v0)
-        if (
+        if not full and (
             np.all(np.isfinite(r0))
             and abs(r0 @ r0 - rss_gn) < HELDOUT_GN_TRUST * self.data.noise_std**2
         ):
@@ -581,13 +585,23 @@ class OutputErrorFitter:
                     v0,
                     lo,
                     hi,
-                    max_iter=HELDOUT_STEPS,
+                    max_iter=self.max_nfev if full else HELDOUT_STEPS,
                     gram=sub.gram,
                     r0=r0,  # the trust test's simulation is the first iteration's
                 )
         except (HystdiscError, np.linalg.LinAlgError, ValueError):
             return x
         return vs[: self.npar] if np.all(np.isfinite(vs)) else x
+
+    def _predict_fold(
+        self, x: np.ndarray, fold: list[int], nu: np.ndarray
+    ) -> tuple[list[np.ndarray], list]:
+        """The fold's runs simulated with the free parameters ``x``, and each run's
+        divergence status."""
+        tm = self.par.model(x)
+        st: list = []
+        out = self.par.simulate(self.data, [tm] * len(fold), fold, [nu[r] for r in fold], st)
+        return out, st
 
     def _heldout(self, v, res, Jm, gram=None):
         """Leave one fold out (a test condition, or a run: :meth:`FitData.folds`): one
@@ -628,14 +642,18 @@ class OutputErrorFitter:
             keep[rows] = False
             rss_gn = float(res[keep] @ res[keep] + 2 * go @ delta + delta @ Go @ delta)
             xr = self._fold_refit(fold, vr, rss_gn)
-            tm = self.par.model(xr)
-            st: list = []
-            out = self.par.simulate(self.data, [tm] * len(fold), fold, [nu[r] for r in fold], st)
+            out, st = self._predict_fold(xr, fold, nu)
+            if any(st):
+                # the quick estimate can leave the stable region on its own: the fold is
+                # fitted fully from the joint optimum before the fit is called unstable
+                vj = np.concatenate([x, nu.ravel()])
+                out, st = self._predict_fold(self._fold_refit(fold, vj, None, True), fold, nu)
             for r, pr, bad in zip(fold, out, st, strict=True):
                 if bad:
                     self.heldout_note = (
-                        f"the held-out prediction of run {self.data.names[r]} diverged: the fit "
-                        "without that run is unstable there (held-out RMS not reported)"
+                        f"the held-out prediction of run {self.data.names[r]} diverged, also "
+                        "after a full refit without it from the joint optimum: the fit without "
+                        "that run is unstable there (held-out RMS not reported)"
                     )
                     return None, None
                 e = (pr - self.data.y[r])[self.masks[r]]
