@@ -84,6 +84,7 @@ from hystdisc.fitting import (
 )
 from hystdisc.fitting.multistart import (
     best_of_starts,
+    drop_diverged,
     helper_families,
     mapped_starts,
     nesting_pass,
@@ -566,9 +567,9 @@ class Discovery(BaseEstimator):
         self.stage1_ = {s: f for s, f in zip(shapes, fits, strict=True) if f is not None}
         if not self.stage1_:
             raise HystdiscError(
-                f"{dataset.source}: stage 1 failed for every hysteresis shape ("
-                + "; ".join(f"{k}: {v}" for k, v in failures.items().items())
-                + "); fix: check that the runs move and the output responds to the motion"
+                f"{dataset.source}: stage 1 failed for every hysteresis shape "
+                f"({failures.summary()}); fix: check that the runs move and the output "
+                "responds to the motion"
             )
         best = min(self.stage1_.values(), key=lambda f: f.bic)
         self.discovered_shape_ = best.shape
@@ -680,11 +681,13 @@ class Discovery(BaseEstimator):
                     fit = failures.guard(name, self._system_fit, name, base, fd, say, failures)
                 if fit is not None:
                     self.family_fits_[name] = fit
+        self.family_fits_ = drop_diverged(self.family_fits_, failures)  # none is a result
+        fams = [n for n in fams if n in self.family_fits_]
+        same = [n for n in same if n in self.family_fits_]
         if not self.family_fits_:
             raise HystdiscError(
-                f"{dataset.source}: every family failed ("
-                + "; ".join(f"{k}: {v}" for k, v in failures.items().items())
-                + "); fix: check the data (hystdisc report shows them) or name other families"
+                f"{dataset.source}: every family failed ({failures.summary()}); fix: check "
+                "the data (hystdisc report shows them) or name other families"
             )
         self.discovered_fit_ = (
             self.family_fits_[same[0]]

@@ -81,6 +81,10 @@ class Failures:
             self.record(task, reason_of(exc))
             return None
 
+    def summary(self) -> str:
+        """Every failure as ``name: reason``, separated by ``; ``."""
+        return "; ".join(f"{k}: {v}" for k, v in self.items().items())
+
     def items(self) -> dict[str, str]:
         """A copy of the record: task name -> reason."""
         with self._lock:

@@ -230,6 +230,19 @@ def best_of_starts(
     return best
 
 
+def drop_diverged(fits: Mapping[str, OEFit], failures: Failures) -> dict[str, OEFit]:
+    """``fits`` without the fits whose simulation diverged at their optimum (on any run):
+    each is recorded in ``failures`` with the runs, and is no result."""
+    out = {}
+    for name, fit in fits.items():
+        if fit.diverged:
+            runs = ", ".join(fit.diverged[:3]) + (" ..." if len(fit.diverged) > 3 else "")
+            failures.record(name, f"its simulation diverged at its optimum (run {runs})")
+        else:
+            out[name] = fit
+    return out
+
+
 def helper_families(
     fits: dict[str, OEFit], good_rms: float, poor: Collection[str] = ()
 ) -> dict[str, list[str]]:

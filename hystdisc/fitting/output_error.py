@@ -112,6 +112,9 @@ class OEFit:
         Jacobian evaluations spent.
     success : bool
         The Levenberg-Marquardt converged.
+    diverged : list of str
+        The runs whose simulation diverged (or could not be resolved) at the optimum:
+        such a fit is no model of those runs (its residual there holds a placeholder).
     """
 
     par: Parametrization
@@ -134,6 +137,7 @@ class OEFit:
     nfev: int = 0
     success: bool = True
     extra: dict = field(default_factory=dict)
+    diverged: list[str] = field(default_factory=list)
 
     @property
     def term_model(self) -> TermModel:
@@ -501,7 +505,8 @@ class OutputErrorFitter:
                 )
         runs = list(range(self.data.n_runs))
         tm = self.par.model(x)
-        preds = self.par.simulate(self.data, [tm] * len(runs), runs, [nu[r] for r in runs])
+        status: list = []
+        preds = self.par.simulate(self.data, [tm] * len(runs), runs, [nu[r] for r in runs], status)
         resid = [preds[r] - self.data.y[r] for r in runs]
         fit = OEFit(
             par=self.par,
@@ -521,6 +526,7 @@ class OutputErrorFitter:
             residuals=resid,
             nfev=nfev,
             success=success,
+            diverged=[self.data.names[r] for r in runs if status[r]],
         )
         if heldout and self.data.n_runs >= 2:
             fit.heldout_rms, fit.heldout_predictions = self._heldout(v, res, Jm, gram)
