@@ -39,8 +39,14 @@ from hystdisc.simulation.specialize import specialize
 #: Default relative and absolute tolerances of :func:`simulate_system`.
 RTOL = 1e-8
 ATOL = 1e-11
-#: Steps (accepted or rejected) allowed per sample interval before a run is given up.
+#: Steps (accepted or rejected) allowed per sample interval, on average over the run,
+#: before a run is given up.
 MAX_STEPS_PER_SAMPLE = 1_000
+#: One sample interval may take up to this many times that budget (a burst of small
+#: steps at a kink: ``|z|^n`` with ``n < 1`` is not Lipschitz at ``z = 0``, and the step
+#: control shrinks the step there without the state being stiff), as long as the run's
+#: steps so far stay within the budget times the intervals passed.
+BURST = 50
 
 # Dormand–Prince 5(4): nodes, stages, 5th-order weights and the error weights (5th - 4th)
 _C = (0.2, 0.3, 0.8, 8.0 / 9.0, 1.0)
@@ -65,6 +71,13 @@ _E = (
 def _input_at(U, k, f, out):
     for j in range(out.shape[0]):
         out[j] = U[k, j] + (U[k + 1, j] - U[k, j]) * f
+
+
+@numba.njit(cache=True, inline="always")
+def _over_budget(steps, total, k, max_steps):
+    """The step budget is spent: ``steps`` in interval ``k`` beyond :data:`BURST` times
+    ``max_steps``, or ``total`` steps beyond ``max_steps`` per interval so far."""
+    return steps > BURST * max_steps or total > max_steps * (k + 1)
 
 
 @numba.njit(cache=True, inline="always")
@@ -141,6 +154,7 @@ def _integrate(x0, t, U, p, rtol, atol, X, Y, max_steps):
     _input_at(U, 0, 0.0, u)
     Y[0] = observe(x, u, p)  # noqa: F821
     h = (t[1] - t[0]) if t.shape[0] > 1 else 0.0
+    total = 0
     for k in range(t.shape[0] - 1):
         span = t[k + 1] - t[k]
         tt = 0.0  # time since t[k]
@@ -151,7 +165,8 @@ def _integrate(x0, t, U, p, rtol, atol, X, Y, max_steps):
             _stages(x, U, k, tt, span, hh, p, ks, xt, u, x5)
             err = _error(x, x5, U, k, tt, span, hh, p, ks, u, rtol, atol)
             steps += 1
-            if not np.isfinite(err) or steps > max_steps:
+            total += 1
+            if not np.isfinite(err) or _over_budget(steps, total, k, max_steps):
                 return 1
             if err <= 1.0:
                 tt += hh
@@ -184,6 +199,7 @@ def _integrate_lockstep(X0, t, U, P, rtol, atol, Y, max_steps):
     for c in range(m):
         Y[c, 0] = observe(x[c], u, P[c])  # noqa: F821
     h = (t[1] - t[0]) if t.shape[0] > 1 else 0.0
+    total = 0
     for k in range(t.shape[0] - 1):
         span = t[k + 1] - t[k]
         tt = 0.0
@@ -194,7 +210,8 @@ def _integrate_lockstep(X0, t, U, P, rtol, atol, Y, max_steps):
             _stages(x[0], U, k, tt, span, hh, P[0], ks, xt, u, x5)
             err = _error(x[0], x5, U, k, tt, span, hh, P[0], ks, u, rtol, atol)
             steps += 1
-            if not np.isfinite(err) or steps > max_steps:
+            total += 1
+            if not np.isfinite(err) or _over_budget(steps, total, k, max_steps):
                 return 1
             if err <= 1.0:
                 x[0] = x5
@@ -271,9 +288,10 @@ def simulate_system(
     rtol, atol : float
         Local error tolerances of the step control.
     max_steps_per_sample : int
-        Steps (accepted or rejected) allowed per sample interval before the run is given
-        up as diverged or stalled (a fit caps it lower: a candidate too stiff to resolve
-        is not worth resolving inside an optimizer).
+        Steps (accepted or rejected) allowed per sample interval on average over the run
+        (one interval may take :data:`BURST` times as many) before the run is given up as
+        diverged or stalled (a fit caps it lower: a candidate too stiff to resolve is not
+        worth resolving inside an optimizer).
 
     Returns
     -------

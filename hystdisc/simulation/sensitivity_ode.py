@@ -57,6 +57,7 @@ from hystdisc.simulation.ode import (
     _error,
     _input_at,
     _next_step,
+    _over_budget,
     _stages,
     input_matrix,
 )
@@ -176,6 +177,7 @@ def _integrate_sens(x0, S0, t, U, p, act, need, rtol, atol, Y, dY, max_steps):
     Y[0] = observe(x, u, p)  # noqa: F821
     _output_sens(x, u, p, act, need, S, gx, gp, work, dY[0])
     h = (t[1] - t[0]) if t.shape[0] > 1 else 0.0
+    total = 0
     for k in range(t.shape[0] - 1):
         span = t[k + 1] - t[k]
         tt = 0.0
@@ -186,7 +188,8 @@ def _integrate_sens(x0, S0, t, U, p, act, need, rtol, atol, Y, dY, max_steps):
             _stages(x, U, k, tt, span, hh, p, ks, xt, u, x5)
             err = _error(x, x5, U, k, tt, span, hh, p, ks, u, rtol, atol)
             steps += 1
-            if not np.isfinite(err) or steps > max_steps:
+            total += 1
+            if not np.isfinite(err) or _over_budget(steps, total, k, max_steps):
                 return 1
             if err <= 1.0:
                 _sens_step(x, S, U, k, tt, span, hh, p, act, need, ks, xt, u, dk, dX, jx, jp, work)

@@ -217,6 +217,9 @@ _PARAMS = """
 
 #: Ratios c1 / c0 of the starts from a Bouc-Wen fit; 13.5 is Spencer et al.'s (283/21).
 START_RATIOS = (3.0, 13.5, 60.0)
+#: The ratio of the start that is the Bouc-Wen fit itself (the node all but still): Spencer
+#: contains standard Bouc-Wen as c1 / c0 grows, so it starts no worse than that fit.
+LIMIT_RATIO = 1e3
 #: A Bouc-Wen shape with ``|beta|`` or ``|gamma|`` above this many times ``A = beta + gamma`` is a
 #: sharp reversal: Spencer is also started from the symmetric shape.
 SHARP_SHAPE = 10.0
@@ -305,7 +308,7 @@ class Spencer(SystemFamily):
         ...       "gamma": 15.0, "n": 2.0, "k_s": 0.0}
         >>> [label for label, _ in SPENCER.starts(bw)]  # doctest: +NORMALIZE_WHITESPACE
         ['c1/c0 = 3, beta = gamma, n = 2', 'c1/c0 = 13.5, beta = gamma, n = 2', 'c1/c0 = 13.5',
-         'c1/c0 = 60, beta = gamma, n = 2']
+         'c1/c0 = 60, beta = gamma, n = 2', 'c1/c0 = 1000 (the Bouc-Wen fit)']
         >>> SPENCER.starts(bw)[1][1]["c1_a"] > SPENCER.starts(bw)[1][1]["c0_a"]
         True
         """
@@ -317,12 +320,14 @@ class Spencer(SystemFamily):
         # Spencer et al.'s shape (beta = gamma, n = 2) at every ratio; the Bouc-Wen fit's
         # own shape at the published ratio unless it is sharp
         sharp = max(abs(base["beta"]), abs(base["gamma"])) > SHARP_SHAPE * A
-        for m in START_RATIOS:
+        for m in (*START_RATIOS, LIMIT_RATIO):
             s = (1.0 + m) / m  # c0 c1/(c0+c1) = c_bw and alpha c1/(c0+c1) = alpha_bw
             c0a, c0b = base["c_1"] * s, base["c_2"] * s
             floor = 1e-3 * max(c0a + c0b, 1e-12)  # a node dashpot is never 0
             shapes = [(", beta = gamma, n = 2", A / 2, 2.0)]
-            if m == START_RATIOS[1] and not sharp:
+            if m == LIMIT_RATIO:  # the Bouc-Wen fit as it is
+                shapes = [(" (the Bouc-Wen fit)", base["beta"], base["n"])]
+            elif m == START_RATIOS[1] and not sharp:
                 shapes.append(("", base["beta"], base["n"]))
             for label, beta, n in shapes:
                 start = {
