@@ -15,7 +15,11 @@ Measurement model: additive Gaussian noise of standard deviation ``noise`` on th
 signal (``theta`` for release/forced, ``torque`` for driven, plus ``theta_noise`` on the
 driven ``theta``), drawn from ``np.random.default_rng(seed)``, then optional encoder
 quantization of ``theta`` (``encoder_counts`` per turn: ``q = 2 pi / counts``), then
-optional glitches: ``spikes = (N, SIZE)`` adds ``+-SIZE`` to ``N`` single samples of the
+optional prefilter: ``prefilter`` (a rig's ``[filter]`` table, see
+:func:`hystdisc.data.read_rig`) passes the recorded channels through a causal moving average
+with zero initial state, as an acquisition system does before the data reach hystdisc (a
+rig file that declares the same ``[filter]`` tells the fit), then optional glitches:
+``spikes = (N, SIZE)`` adds ``+-SIZE`` to ``N`` single samples of the
 measured signal drawn at random over all runs (a sensor's isolated spikes; their own
 random stream, so the noise is the same with and without them).
 
@@ -53,7 +57,8 @@ from typing import Any
 import numpy as np
 
 from hystdisc import registry
-from hystdisc.data import Dataset, Run, parse_toml, write_csv
+from hystdisc.data import Dataset, Run, filter_windows, parse_toml, write_csv
+from hystdisc.data.rigs import normalize_rig
 from hystdisc.errors import HystdiscError
 from hystdisc.models import Model, TermModel
 from hystdisc.simulation import simulate_driven_runs, simulate_mech, simulate_system
@@ -101,6 +106,7 @@ SCENARIO_KEYS = (
     "seed",
     "encoder_counts",
     "spikes",
+    "prefilter",
     "drives",
     "input",
     "output",
@@ -320,6 +326,7 @@ def generate(
     theta_noise: float = 0.0,
     delay: float = 0.0,
     spikes: tuple[int, float] | None = None,
+    prefilter: Mapping[str, Any] | None = None,
 ) -> Dataset:
     """Simulate a model on the rig and measure it with noise and quantization.
 
@@ -364,6 +371,13 @@ def generate(
         of the measured signal (``theta``, or the driven ``torque``), at distinct samples
         drawn uniformly over all runs by ``np.random.default_rng([seed, 1])``. The noise
         draws do not change with them.
+    prefilter : dict, optional
+        A filter the recorded signals passed through, as a rig's ``[filter]`` table:
+        ``{"window": N}`` samples or ``{"period_fraction": F}`` of each run's motion
+        period, and ``channels`` (default: every recorded channel, ``theta`` and the
+        driven ``torque`` or the forced ``input``). Each channel is replaced by its causal
+        moving average with zero initial state, after the noise and the quantization and
+        before the spikes (a filtered ``theta`` filters the stored ``theta_dot`` too).
 
     Returns
     -------
@@ -445,6 +459,7 @@ def generate(
     if not kind.has_input and input_spec is not None:
         raise HystdiscError(f"an input is only used by forced experiments, not {exp}; fix: drop it")
     n_spikes, spike_size = _check_spikes(spikes, n * len(cur) * max(per_current, 1))
+    filt = _check_prefilter(prefilter, kind)
     t = np.arange(n) / fs
     rng = np.random.default_rng(int(seed))
     label = repr(mdl) if isinstance(mdl, Model) else "a term model"
@@ -492,6 +507,7 @@ def generate(
             torque = torque + noise * rng.standard_normal(n)
             theta_m = _measure_theta(th, theta_noise, q, rng)
             runs.append(Run(str(k), t.copy(), theta_m, c, torque=torque, theta_dot=w.copy()))
+        _apply_prefilter(runs, filt, source)
         _add_spikes([r.torque for r in runs], n_spikes, spike_size, int(seed))
         return Dataset(runs, exp, source)
 
@@ -533,6 +549,7 @@ def generate(
         theta_m = _measure_theta(np.interp(t - delay, t, theta), noise, q, rng)
         extra = {"input": inputs[k]} if inputs is not None else {}
         runs.append(Run(str(k), t.copy(), theta_m, c, **extra))
+    _apply_prefilter(runs, filt, source)
     _add_spikes([r.theta for r in runs], n_spikes, spike_size, int(seed))
     return Dataset(runs, exp, source)
 
@@ -552,6 +569,50 @@ def _check_spikes(spikes: Any, total: int) -> tuple[int, float]:
     if count > total:
         raise HystdiscError(f"spikes: N = {count} exceeds the {total} samples; fix: give fewer")
     return int(count), _number(size, "spike size", positive=True)
+
+
+def _check_prefilter(spec: Mapping[str, Any] | None, kind: Any) -> dict[str, Any] | None:
+    """A ``prefilter`` checked as a rig's ``[filter]`` table (None without one); its
+    channels default to every channel the experiment records."""
+    if spec is None:
+        return None
+    if not isinstance(spec, Mapping):
+        raise HystdiscError(
+            f"prefilter {spec!r} is not a table; fix: give e.g. {{window = 10}} or "
+            "{period_fraction = 0.1}"
+        )
+    recorded = ["theta"] + (
+        [kind.output] if kind.motion_imposed else ["input"] if kind.has_input else []
+    )
+    table = {"channels": recorded, **spec}
+    filt = normalize_rig({"filter": table}, "prefilter")["filter"]
+    extra = [c for c in filt["channels"] if c not in recorded]
+    if extra:
+        raise HystdiscError(
+            f"prefilter: a {kind.name} experiment records no {extra[0]} channel; fix: filter "
+            f"only {', '.join(recorded)}"
+        )
+    return filt
+
+
+def _moving_average(y: np.ndarray, window: int) -> np.ndarray:
+    """Causal moving average of ``window`` samples, zero initial state (the filter of a
+    rig's ``[filter]`` table)."""
+    c = np.cumsum(np.concatenate([np.zeros(window), np.asarray(y, dtype=float)]))
+    return (c[window:] - c[:-window]) / window
+
+
+def _apply_prefilter(runs: list[Run], filt: Mapping[str, Any] | None, source: str) -> None:
+    """Pass the channels of ``filt`` of every run through its moving average (in place)."""
+    if filt is None:
+        return
+    windows = filter_windows(filt, runs, source)
+    for r, w in zip(runs, windows, strict=True):
+        names = list(filt["channels"]) + (["theta_dot"] if "theta" in filt["channels"] else [])
+        for name in names:
+            sig = getattr(r, name)
+            if sig is not None:
+                sig[:] = _moving_average(sig, w)
 
 
 def _add_spikes(signals: list[np.ndarray], count: int, size: float, seed: int) -> None:
@@ -664,7 +725,7 @@ def load_scenario(path: str | os.PathLike[str]) -> dict[str, Any]:
     Keys: ``model`` (family), ``[params]``, ``[effects.<name>]`` tables (an empty table
     takes the effect's defaults), ``currents``, ``experiment``, ``theta0``, ``duration``,
     ``fs``, ``noise``, ``theta_noise``, ``delay`` (s), ``seed``, ``encoder_counts``,
-    ``spikes`` (``[N, SIZE]``), ``drives`` (tables
+    ``spikes`` (``[N, SIZE]``), ``[prefilter]`` (a rig's ``[filter]`` table), ``drives`` (tables
     ``{amplitude, frequency}`` or ``"A@f"`` strings), ``[input]``, ``output`` (CSV file
     name, relative to the scenario file) and the informative ``declared`` (the family a
     user would declare for these data) and ``description``. Unknown keys are an error.
@@ -767,6 +828,14 @@ def normalize_scenario(raw: Mapping[str, Any], source: str = "scenario") -> dict
                         source, f"{key} = {v!r} is not a whole number", "give an integer"
                     )
                 sc[key] = v
+        if "prefilter" in raw:
+            if not isinstance(raw["prefilter"], Mapping):
+                raise _scenario_error(
+                    source,
+                    "prefilter must be a table",
+                    'write [prefilter] then period_fraction = 0.1 and channels = ["theta"]',
+                )
+            sc["prefilter"] = dict(raw["prefilter"])
         if "drives" in raw:
             if not isinstance(raw["drives"], list):
                 raise _scenario_error(
@@ -817,6 +886,7 @@ def generate_from_scenario(scenario: Mapping[str, Any]) -> Dataset:
         "theta_noise",
         "delay",
         "spikes",
+        "prefilter",
     ):
         if scenario.get(key) is not None:
             kw[key] = scenario[key]
