@@ -74,15 +74,18 @@ How success is read (issue 33 item 5; :func:`evaluate`): success = all five
         wider than 5 % of the truth (the data cannot tell it to 5 %) is judged at that
         half-width instead (``stress.py``'s data-limited reading) and listed.
     rms
-        The held-out error (leave one condition out) is at the floor: ``|heldout / floor
-        - 1| <= RMS_TOL`` = 10 %. ``floor = sqrt(s_T^2 + s_m^2)``: ``s_T`` the true force
+        The held-out error (leave one condition out) is at the floor: ``heldout <= (1 +
+        RMS_TOL) floor`` and ``heldout >= (1 - RMS_TOL) s_T`` (``RMS_TOL`` = 10 %; no model
+        predicts the force noise, so ``s_T`` alone bounds it from below; without motion
+        noise this is ``|heldout / floor - 1| <= 10 %``). ``floor = sqrt(s_T^2 + s_m^2)``: ``s_T`` the true force
         noise as recorded (under ``prefilter``: the moving average's output noise,
         ``s sqrt(mean_k min(k+1, W)/W^2)`` over the samples, zero initial state), ``s_m``
         the motion noise propagated into the torque where there is some (``motion``,
         ``enc16``): the RMS change of the *true* model's torque when it is driven by the
-        measured motion smoothed by the best Savitzky-Golay filter (cubic, the window that
-        minimizes that change, chosen knowing the truth: a lower bound of what a plain
-        smoother leaves) instead of the exact motion. The in-sample RMS is recorded too.
+        best estimate of the motion from its measurement instead of the exact motion (of
+        cubic Savitzky-Golay filters of several windows and a fit of 3 harmonics of the
+        drive, the one that changes it least, chosen knowing the truth: a lower bound of
+        what such estimates leave, so the floor is not padded). The in-sample RMS is recorded too.
     ci
         The truth inside the simultaneous 95 % intervals (Bonferroni over the case's
         checked parameters: ``|value - truth| / SE <= z_k``, ``SE`` the 95 % interval's
@@ -377,16 +380,32 @@ def _true_torques(family: str, params: dict[str, float], thetas, theta_dots) -> 
 
 #: Savitzky-Golay windows (samples) tried for the propagated motion noise.
 SG_WINDOWS = (5, 9, 15, 21, 31, 45, 61, 91, 121)
+#: Harmonics of the drive fitted to each run's motion (the other motion estimate tried).
+HARMONICS = 3
+
+
+def harmonic_motion(t: np.ndarray, theta: np.ndarray, freq: float, k: int = HARMONICS):
+    """Least-squares fit of a mean and ``k`` harmonics of ``freq`` to a periodic motion:
+    the motion and its (analytic) velocity."""
+    om = 2.0 * np.pi * freq * np.arange(1, k + 1)
+    arg = np.outer(t, om)
+    basis = np.hstack([np.ones((t.size, 1)), np.sin(arg), np.cos(arg)])
+    coef, *_ = np.linalg.lstsq(basis, theta, rcond=None)
+    a, b = coef[1 : k + 1], coef[k + 1 :]
+    return basis @ coef, np.cos(arg) @ (a * om) - np.sin(arg) @ (b * om)
 
 
 def propagated_motion_noise(
     family: str, params: dict[str, float], case_seed: int, cond: dict, duration: float = DURATION
-) -> tuple[float, int]:
-    """RMS change of the true torque when the model is driven by the measured motion
-    smoothed by the best cubic Savitzky-Golay filter instead of the exact motion, and that
-    window (0 and 0 without motion noise)."""
+) -> tuple[float, str]:
+    """RMS change of the true torque when the model is driven by the best estimate of the
+    motion from its measurement instead of the exact motion, and which estimate that was
+    (0 and "" without motion noise). Tried: cubic Savitzky-Golay filters of
+    :data:`SG_WINDOWS` samples, and a fit of :data:`HARMONICS` harmonics of the drive's
+    frequency (a periodic test's own estimate); the one closest to the truth is kept (a
+    lower bound of what such estimates leave)."""
     if not cond["theta_noise"] and not cond["encoder"]:
-        return 0.0, 0
+        return 0.0, ""
     from scipy.signal import savgol_filter
 
     exact = driven_data(family, params, duration=duration)
@@ -400,14 +419,20 @@ def propagated_motion_noise(
         encoder_counts=cond["encoder"],
     )
     ref = np.concatenate([r.torque for r in exact.runs])
-    best = (math.inf, 0)
-    for w in SG_WINDOWS:
-        ths = [savgol_filter(r.theta, w, 3, mode="interp") for r in meas.runs]
-        ws = [
-            savgol_filter(r.theta, w, 3, deriv=1, delta=1.0 / FS, mode="interp") for r in meas.runs
-        ]
+    freqs = [f for _, f in DRIVES for _ in CURRENTS]
+    estimates = {
+        f"savgol {w}": (
+            [savgol_filter(r.theta, w, 3, mode="interp") for r in meas.runs],
+            [savgol_filter(r.theta, w, 3, deriv=1, delta=1 / FS, mode="interp") for r in meas.runs],
+        )
+        for w in SG_WINDOWS
+    }
+    fits = [harmonic_motion(r.t, r.theta, f) for r, f in zip(meas.runs, freqs, strict=True)]
+    estimates[f"{HARMONICS} harmonics"] = ([a for a, _ in fits], [b for _, b in fits])
+    best = (math.inf, "")
+    for label, (ths, ws) in estimates.items():
         tq = np.concatenate(_true_torques(family, params, ths, ws))
-        best = min(best, (float(np.sqrt(np.mean((tq - ref) ** 2))), w))
+        best = min(best, (float(np.sqrt(np.mean((tq - ref) ** 2))), label))
     return best
 
 
@@ -570,7 +595,10 @@ def evaluate(res: dict, case: Case, motion_floor: float = 0.0) -> dict:
         "ran": True,
         "family": family_ok,
         "params": not judged["outside_data"],
-        "rms": abs(heldout_ratio - 1.0) <= RMS_TOL,
+        # at most 10 % above the floor; at least 10 % below the force noise alone (no
+        # model predicts the force noise; the motion's share is an estimate's, see above)
+        "rms": (1.0 - RMS_TOL) * case.force_floor <= heldout_ratio * floor
+        and heldout_ratio <= 1.0 + RMS_TOL,
         "ci": all(z <= zj for z in zs.values()),
     }
     noise = res.get("noise") or {}
@@ -637,7 +665,7 @@ def run_case(case: Case, work: Path) -> dict:
         case.family, case.params, case.seed, CONDITIONS[case.condition], case.duration
     )
     rec = evaluate(json.loads(out.read_text()), case, s_m)
-    rec["sg_window"] = w
+    rec["motion_estimate"] = w
     rec["seconds"] = time.perf_counter() - t0
     return rec
 
@@ -727,9 +755,10 @@ def render(records: list[dict], meta: dict) -> str:
         "held-out error within 2 standard errors of an RMS of the selected one's); "
         f"**params** (every identifiable parameter within {100 * TOL:.0f} % in the "
         "family's own normalization, or within its simultaneous 95 % half-width where that "
-        f"is wider); **rms** (held-out error within {100 * RMS_TOL:.0f} % of the floor "
-        "sqrt(s_T^2 + s_m^2): the true recorded force noise, plus the motion noise "
-        "propagated through the true model where there is some); **ci** (the truth inside "
+        f"is wider); **rms** (held-out error at most {100 * RMS_TOL:.0f} % above the floor "
+        "sqrt(s_T^2 + s_m^2) — s_T the true recorded force noise, s_m the motion noise "
+        "propagated through the true model by the best motion estimate where there is some "
+        f"— and at least {100 * RMS_TOL:.0f} % below s_T alone); **ci** (the truth inside "
         "the simultaneous — Bonferroni — 95 % intervals). Coverage = the plain 95 % "
         "intervals holding the truth, over every checked parameter (target 0.92-0.98).",
         "",
@@ -903,6 +932,11 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument("--no-run", action="store_true", help="re-render the markdown from the JSON")
     ap.add_argument(
+        "--re-evaluate",
+        action="store_true",
+        help="judge the cases kept in --work again from their results.json (no new run)",
+    )
+    ap.add_argument(
         "--release-reading",
         nargs="*",
         metavar="JSON",
@@ -975,6 +1009,15 @@ def main(argv: list[str] | None = None) -> int:
     def one(case: Case) -> dict:
         done = work / f"{case.name.replace('/', '_')}.record.json"
         rec = kept_record(done)
+        res = work / f"{case.name.replace('/', '_')}.json"
+        if rec is not None and args.re_evaluate and res.exists():
+            s_m, est = propagated_motion_noise(
+                case.family, case.params, case.seed, CONDITIONS[case.condition], case.duration
+            )
+            seconds = rec.get("seconds")
+            rec = evaluate(json.loads(res.read_text()), case, s_m)
+            rec.update(motion_estimate=est, seconds=seconds)
+            done.write_text(json.dumps(rec, default=str))
         if rec is None:
             rec = run_case(case, work)
             done.write_text(json.dumps(rec, default=str))
