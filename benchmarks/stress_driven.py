@@ -1,4 +1,4 @@
-"""Driven stress suite (issue 33 items 4-5): families x random parameter sets x measurement conditions.
+"""Driven stress suite (issue 33 items 4-5): families x random sets x measurement conditions.
 
 The driven counterpart of ``stress.py``. Every case is one synthetic driven dataset
 (imposed sine motion, measured motion and torque) written by ``hystdisc simulate`` and
@@ -14,22 +14,23 @@ Data of a case
 
 Random parameters (:data:`BOUNDS`)
     Every coefficient is log-uniform in ``[0.5x, 2x]`` the family's demo default (the
-    ``Param`` default) unless said otherwise. Bouc-Wen shapes as in ``stress.py``:
-    ``beta, gamma > 0`` (``z`` saturates), ``n`` uniform in ``[0.5, 2.5]`` (seed form)
-    or ``[1, 3]`` (standard form, Spencer). A driven damper has no rig spring; the torque
-    may hold a spring term (an accumulator, Spencer's ``k1``): the term families' ``k_s``,
-    Spencer's ``k1`` and tanh's ``k`` are log-uniform in ``[0.5, 2]`` N*m/rad (0.025-0.4 N*m
-    at the amplitudes, a few % of the torque; never 0, so every parameter has a relative
-    error). Spencer (MR-like loops, checked by plotting force against velocity,
-    ``--plot-loops``, ``benchmarks/results/stress_driven_loops_*.png``): internal dashpot ``c1_a`` in ``[2.5, 10]`` and ``c1_b`` in
-    ``[1, 4]`` against ``c0_a`` in ``[0.25, 1]``, ``c0_b`` in ``[0.3, 1.2]`` (c1/c0 between
-    2.5 and 40, Spencer et al.'s 13.5 inside: the roll-off at low velocity), ``k0`` in
-    ``[0.25, 1]``, ``A`` in ``[60, 240]`` 1/rad (``A`` times the smallest stroke 0.05 rad
-    is 3-12: the Bouc-Wen element yields within every stroke, a plateau; with ``A`` in
-    ``[12, 40]`` it did not and the loops were ellipses) and ``beta`` in ``[10, 40]`` (so
-    ``gamma = A - beta >= 20``: ``z`` saturates at 1). Tanh: ``beta`` (inverse yield velocity) in
-    ``[5, 20]`` s/rad (yield at 0.05-0.2 rad/s against peak velocities 0.63-1.6 rad/s: a
-    sharp MR knee), ``delta`` in ``[0.25, 1]`` (the branch shift, the loop's width).
+    ``Param`` default) unless said otherwise. Bouc-Wen shapes as in ``stress.py``: ``beta,
+    gamma > 0`` (``z`` saturates), ``n`` uniform in ``[0.5, 2.5]`` (seed form) or ``[1, 3]``
+    (standard form, Spencer). A driven damper has no rig spring; the torque may hold a
+    spring term (an accumulator, Spencer's ``k1``): the term families' ``k_s``, Spencer's
+    ``k1`` and tanh's ``k`` are log-uniform in ``[0.5, 2]`` N*m/rad (0.025-0.4 N*m at the
+    amplitudes, a few % of the torque; never 0, so every parameter has a relative error).
+    Spencer (MR-like loops, checked by plotting force against velocity, ``--plot-loops``,
+    ``benchmarks/results/stress_driven_loops_*.png``): internal dashpot ``c1_a`` in ``[2.5,
+    10]`` and ``c1_b`` in ``[1, 4]`` against ``c0_a`` in ``[0.25, 1]``, ``c0_b`` in ``[0.3,
+    1.2]`` (c1/c0 between 2.5 and 40, Spencer et al.'s 13.5 inside: the roll-off at low
+    velocity), ``k0`` in ``[0.25, 1]``, ``A`` in ``[60, 240]`` 1/rad (``A`` times the
+    smallest stroke 0.05 rad is 3-12: the Bouc-Wen element yields within every stroke, a
+    plateau; with ``A`` in ``[12, 40]`` it did not and the loops were ellipses) and ``beta``
+    in ``[10, 40]`` (so ``gamma = A - beta >= 20``: ``z`` saturates at 1). Tanh: ``beta``
+    (inverse yield velocity) in ``[5, 20]`` s/rad (yield at 0.05-0.2 rad/s against peak
+    velocities 0.63-1.6 rad/s: a sharp MR knee), ``delta`` in ``[0.25, 1]`` (the branch
+    shift, the loop's width).
     A set is *rejected* (the next draw of the same generator taken, the reasons counted)
     when its noise-free torque is not finite, or when any run does not dissipate (the work
     ``-integral T dtheta`` over the last full cycle of the motion is not positive).
@@ -77,15 +78,17 @@ How success is read (issue 33 item 5; :func:`evaluate`): success = all five
         The held-out error (leave one condition out) is at the floor: ``heldout <= (1 +
         RMS_TOL) floor`` and ``heldout >= (1 - RMS_TOL) s_T`` (``RMS_TOL`` = 10 %; no model
         predicts the force noise, so ``s_T`` alone bounds it from below; without motion
-        noise this is ``|heldout / floor - 1| <= 10 %``). ``floor = sqrt(s_T^2 + s_m^2)``: ``s_T`` the true force
-        noise as recorded (under ``prefilter``: the moving average's output noise,
-        ``s sqrt(mean_k min(k+1, W)/W^2)`` over the samples, zero initial state), ``s_m``
-        the motion noise propagated into the torque where there is some (``motion``,
-        ``enc16``): the RMS change of the *true* model's torque when it is driven by the
-        best estimate of the motion from its measurement instead of the exact motion (of
-        cubic Savitzky-Golay filters of several windows and a fit of 3 harmonics of the
-        drive, the one that changes it least, chosen knowing the truth: a lower bound of
-        what such estimates leave, so the floor is not padded). The in-sample RMS is recorded too.
+        noise this is ``|heldout / floor - 1| <= 10 %``). ``floor = sqrt(s_T^2 + s_m^2)``:
+        ``s_T`` the true force noise as recorded (under ``prefilter``: the moving average's
+        output noise, ``s sqrt(mean_k min(k+1, W)/W^2)`` over the samples, zero initial
+        state), ``s_m`` the motion noise propagated into the torque where there is some
+        (``motion``, ``enc16``): the RMS change of the *true* model's torque when it is
+        driven by the best estimate of the motion from its measurement instead of the exact
+        motion (of cubic Savitzky-Golay filters of several windows and a fit of 3 harmonics
+        of the drive, the one that changes it least, chosen knowing the truth: a lower bound
+        of what such estimates leave, so the floor is not padded; a sign function sampled
+        exactly at the reversals, Bingham's, makes it large). The in-sample RMS is recorded
+        too.
     ci
         The truth inside the simultaneous 95 % intervals (Bonferroni over the case's
         checked parameters: ``|value - truth| / SE <= z_k``, ``SE`` the 95 % interval's

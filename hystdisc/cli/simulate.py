@@ -8,7 +8,7 @@ Examples::
     hystdisc simulate --model bouc-wen --set k_s=0 --experiment driven --drive 0.3@1 -o d.csv
     hystdisc simulate --scenario data_synth/dahl.toml --seed 7 -o dahl_seed7.csv
     hystdisc simulate --model dahl --noise 1e-3 --spikes 6:0.05 -o dahl_spikes.csv
-    hystdisc simulate --model dahl --set k_s=0 --experiment driven --prefilter period_fraction=0.1 -o f.csv
+    hystdisc simulate --model dahl --experiment driven --prefilter period_fraction=0.1 -o f.csv
     hystdisc simulate --regenerate data_synth --force
 """
 
