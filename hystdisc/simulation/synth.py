@@ -15,10 +15,8 @@ Measurement model: additive Gaussian noise of standard deviation ``noise`` on th
 signal (``theta`` for release/forced, ``torque`` for driven, plus ``theta_noise`` on the
 driven ``theta``), drawn from ``np.random.default_rng(seed)``, then optional encoder
 quantization of ``theta`` (``encoder_counts`` per turn: ``q = 2 pi / counts``), then
-optional prefilter: ``prefilter`` (a rig's ``[filter]`` table, see
-:func:`hystdisc.data.read_rig`) passes the recorded channels through a causal moving average
-with zero initial state, as an acquisition system does before the data reach hystdisc (a
-rig file that declares the same ``[filter]`` tells the fit), then optional glitches:
+an optional prefilter (a rig's ``[filter]`` table: :mod:`hystdisc.simulation.prefilter`),
+then optional glitches:
 ``spikes = (N, SIZE)`` adds ``+-SIZE`` to ``N`` single samples of the
 measured signal drawn at random over all runs (a sensor's isolated spikes; their own
 random stream, so the noise is the same with and without them).
@@ -57,11 +55,11 @@ from typing import Any
 import numpy as np
 
 from hystdisc import registry
-from hystdisc.data import Dataset, Run, filter_windows, parse_toml, write_csv
-from hystdisc.data.rigs import normalize_rig
+from hystdisc.data import Dataset, Run, parse_toml, write_csv
 from hystdisc.errors import HystdiscError
 from hystdisc.models import Model, TermModel
 from hystdisc.simulation import simulate_driven_runs, simulate_mech, simulate_system
+from hystdisc.simulation.prefilter import apply_prefilter, check_prefilter
 
 __all__ = [
     "DEFAULT_CURRENTS",
@@ -459,7 +457,7 @@ def generate(
     if not kind.has_input and input_spec is not None:
         raise HystdiscError(f"an input is only used by forced experiments, not {exp}; fix: drop it")
     n_spikes, spike_size = _check_spikes(spikes, n * len(cur) * max(per_current, 1))
-    filt = _check_prefilter(prefilter, kind)
+    filt = check_prefilter(prefilter, kind)
     t = np.arange(n) / fs
     rng = np.random.default_rng(int(seed))
     label = repr(mdl) if isinstance(mdl, Model) else "a term model"
@@ -507,7 +505,7 @@ def generate(
             torque = torque + noise * rng.standard_normal(n)
             theta_m = _measure_theta(th, theta_noise, q, rng)
             runs.append(Run(str(k), t.copy(), theta_m, c, torque=torque, theta_dot=w.copy()))
-        _apply_prefilter(runs, filt, source)
+        apply_prefilter(runs, filt, source)
         _add_spikes([r.torque for r in runs], n_spikes, spike_size, int(seed))
         return Dataset(runs, exp, source)
 
@@ -549,7 +547,7 @@ def generate(
         theta_m = _measure_theta(np.interp(t - delay, t, theta), noise, q, rng)
         extra = {"input": inputs[k]} if inputs is not None else {}
         runs.append(Run(str(k), t.copy(), theta_m, c, **extra))
-    _apply_prefilter(runs, filt, source)
+    apply_prefilter(runs, filt, source)
     _add_spikes([r.theta for r in runs], n_spikes, spike_size, int(seed))
     return Dataset(runs, exp, source)
 
@@ -569,50 +567,6 @@ def _check_spikes(spikes: Any, total: int) -> tuple[int, float]:
     if count > total:
         raise HystdiscError(f"spikes: N = {count} exceeds the {total} samples; fix: give fewer")
     return int(count), _number(size, "spike size", positive=True)
-
-
-def _check_prefilter(spec: Mapping[str, Any] | None, kind: Any) -> dict[str, Any] | None:
-    """A ``prefilter`` checked as a rig's ``[filter]`` table (None without one); its
-    channels default to every channel the experiment records."""
-    if spec is None:
-        return None
-    if not isinstance(spec, Mapping):
-        raise HystdiscError(
-            f"prefilter {spec!r} is not a table; fix: give e.g. {{window = 10}} or "
-            "{period_fraction = 0.1}"
-        )
-    recorded = ["theta"] + (
-        [kind.output] if kind.motion_imposed else ["input"] if kind.has_input else []
-    )
-    table = {"channels": recorded, **spec}
-    filt = normalize_rig({"filter": table}, "prefilter")["filter"]
-    extra = [c for c in filt["channels"] if c not in recorded]
-    if extra:
-        raise HystdiscError(
-            f"prefilter: a {kind.name} experiment records no {extra[0]} channel; fix: filter "
-            f"only {', '.join(recorded)}"
-        )
-    return filt
-
-
-def _moving_average(y: np.ndarray, window: int) -> np.ndarray:
-    """Causal moving average of ``window`` samples, zero initial state (the filter of a
-    rig's ``[filter]`` table)."""
-    c = np.cumsum(np.concatenate([np.zeros(window), np.asarray(y, dtype=float)]))
-    return (c[window:] - c[:-window]) / window
-
-
-def _apply_prefilter(runs: list[Run], filt: Mapping[str, Any] | None, source: str) -> None:
-    """Pass the channels of ``filt`` of every run through its moving average (in place)."""
-    if filt is None:
-        return
-    windows = filter_windows(filt, runs, source)
-    for r, w in zip(runs, windows, strict=True):
-        names = list(filt["channels"]) + (["theta_dot"] if "theta" in filt["channels"] else [])
-        for name in names:
-            sig = getattr(r, name)
-            if sig is not None:
-                sig[:] = _moving_average(sig, w)
 
 
 def _add_spikes(signals: list[np.ndarray], count: int, size: float, seed: int) -> None:
@@ -828,14 +782,8 @@ def normalize_scenario(raw: Mapping[str, Any], source: str = "scenario") -> dict
                         source, f"{key} = {v!r} is not a whole number", "give an integer"
                     )
                 sc[key] = v
-        if "prefilter" in raw:
-            if not isinstance(raw["prefilter"], Mapping):
-                raise _scenario_error(
-                    source,
-                    "prefilter must be a table",
-                    'write [prefilter] then period_fraction = 0.1 and channels = ["theta"]',
-                )
-            sc["prefilter"] = dict(raw["prefilter"])
+        if "prefilter" in raw:  # checked by generate (simulation.prefilter)
+            sc["prefilter"] = raw["prefilter"]
         if "drives" in raw:
             if not isinstance(raw["drives"], list):
                 raise _scenario_error(
