@@ -66,17 +66,26 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
-import subprocess
 import sys
 import tempfile
 import time
 import zlib
-from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from stress_common import (
+    RMS_TOL,
+    TOL,
+    draw,
+    hystdisc_cli,
+    judge_parameters,
+    report_header,
+    run_cases,
+)
+from stress_common import Z95 as Z95  # the suite's names, as before
+from stress_common import git_commit as _commit
+from stress_common import joint_z as joint_z
 
 ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
@@ -89,12 +98,6 @@ from hystdisc.simulation.synth import generate  # noqa: E402
 
 #: Base of every sampler seed.
 SEED = 16007
-#: Two-sided 95 % normal quantile (the fits' intervals).
-Z95 = 1.959963984540054
-#: Relative tolerance of an identifiable parameter.
-TOL = 0.05
-#: RMS within this fraction of the floor.
-RMS_TOL = 0.10
 CURRENTS = (0.0, 0.25, 0.5, 0.75, 1.0)
 THETA0 = 0.3
 DURATION = 6.0
@@ -158,12 +161,6 @@ FAMILIES = tuple(BOUNDS)
 # ----------------------------------------------------------------------------- sampling
 
 
-def _draw(rng: np.random.Generator, spec: tuple[str, float, float]) -> float:
-    kind, lo, hi = spec
-    x = math.exp(rng.uniform(math.log(lo), math.log(hi))) if kind == "log" else rng.uniform(lo, hi)
-    return float(f"{x:.6g}")  # exactly what --set passes
-
-
 def release_check(family: str, params: dict[str, float], duration: float = DURATION) -> str:
     """Empty if the noise-free release decays at every current, else why it is rejected."""
     try:
@@ -191,7 +188,7 @@ def sample_set(
     rng = np.random.default_rng([SEED, zlib.crc32(family.encode()), index])
     rejected: list[str] = []
     for _ in range(100):
-        p = {k: _draw(rng, s) for k, s in {**BOUNDS[family], **RIG_BOUNDS}.items()}
+        p = {k: draw(rng, s) for k, s in {**BOUNDS[family], **RIG_BOUNDS}.items()}
         why = release_check(family, p, duration)
         if not why:
             return p, rejected
@@ -261,16 +258,6 @@ def floor_of(condition: str) -> float:
     return max(cond["noise"], q / math.sqrt(12.0))
 
 
-def joint_z(k: int, level: float = 0.95) -> float:
-    """The z-score of simultaneous ``level`` intervals for ``k`` parameters (Bonferroni:
-    each at ``1 - (1 - level) / k``). With ``k`` exact 95 % intervals the truth is inside
-    all of them in only about ``0.95**k`` of the cases (0.70 for 7); inside these, in at
-    least 95 %."""
-    from scipy.stats import norm
-
-    return float(norm.ppf(1.0 - (1.0 - level) / (2.0 * max(k, 1))))
-
-
 def evaluate(res: dict, case: Case) -> dict:
     """The four criteria of one case from its ``results.json`` (module docstring)."""
     truth = normalized_truth(case.family, case.params)
@@ -283,37 +270,11 @@ def evaluate(res: dict, case: Case) -> dict:
         fit, source = final, "final"
     else:
         fit, source = res["families"][case.family], f"families[{case.family}]"
-    pars = fit["parameters"]
     ratio = float(fit["rms"]) / case.floor
-    out_tol, out_ci, skipped, checked = [], [], [], []
-    zs: dict[str, float] = {}
-    rel_se: dict[str, float] = {}  # standard error relative to the truth
-    for name, t in truth.items():
-        entry = pars.get(name)
-        if entry is None:
-            skipped.append(f"{name} (not reported)")
-            continue
-        if not entry.get("identifiable", True):
-            skipped.append(name)
-            continue
-        v = float(entry["value"])
-        lo, hi = (float(x) for x in entry["ci95"])
-        rel = abs(v - t) / abs(t) if t != 0 else abs(v)
-        checked.append(name)
-        if not rel <= TOL:
-            out_tol.append({"name": name, "truth": t, "value": v, "rel": rel})
-        if not lo <= t <= hi:
-            out_ci.append({"name": name, "truth": t, "value": v, "ci95": [lo, hi]})
-        se = (hi - lo) / (2.0 * Z95)
-        zs[name] = abs(v - t) / se if se > 0 else (0.0 if v == t else math.inf)
-        if t:
-            rel_se[name] = se / abs(t)
-    # what the data can tell: a parameter whose simultaneous interval is wider than TOL
-    # cannot be asked to be within TOL (an efficient estimator misses it about as often as
-    # its z-score passes TOL / SE); it is judged at that limit instead, and listed
-    zj = joint_z(len(zs))
-    limited = {n: zj * r for n, r in rel_se.items() if zj * r > TOL}
-    out_data = [o for o in out_tol if o["rel"] > max(TOL, limited.get(o["name"], 0.0))]
+    judged = judge_parameters(fit["parameters"], truth, TOL)
+    out_tol, out_ci, zs = judged["outside_tolerance"], judged["outside_ci"], judged["z"]
+    checked, skipped, limited = judged["checked"], judged["skipped"], judged["limited"]
+    out_data, zj = judged["outside_data"], judged["zj"]
     noise = res.get("noise") or {}
     outliers = res.get("outliers") or {}
     crit = {
@@ -380,19 +341,15 @@ def run_case(case: Case, work: Path, in_process: bool = False) -> dict:
             if code:
                 raise RuntimeError(f"{case.name}: hystdisc {args[0]} exited with {code}")
         else:
-            env = {**os.environ, "PYTHONPATH": str(ROOT)}
-            cp = subprocess.run(
-                [sys.executable, "-m", "hystdisc", *args], capture_output=True, text=True, env=env
-            )
-            if cp.returncode:
-                err = (cp.stderr.strip().splitlines() or ["?"])[-1]
+            code, err = hystdisc_cli(args, ROOT)
+            if code:
                 return {
                     "case": case.name,
                     "family": case.family,
                     "index": case.index,
                     "condition": case.condition,
                     "success": False,
-                    "error": f"hystdisc {args[0]} exited with {cp.returncode}: {err}",
+                    "error": f"hystdisc {args[0]} exited with {code}: {err}",
                     "criteria": dict.fromkeys(("family", "params", "rms", "ci"), False),
                     "params_sampled": case.params,
                     "rejected_draws": case.rejected,
@@ -442,17 +399,6 @@ def _rate(recs: list[dict], key: str | None = None) -> str:
     else:
         ok = sum(r["success"] if key is None else bool(r["criteria"].get(key)) for r in recs)
     return f"{ok}/{len(recs)}"
-
-
-def report_header(title: str, meta: dict, count: str) -> list[str]:
-    """The first lines of a benchmark report: title, command, commit, time and ``count``."""
-    return [
-        f"# {title}",
-        "",
-        f"Command: `{meta['command']}`  ",
-        f"Commit: {meta['commit']}; {meta['when']}; wall time {meta['wall_s']:.0f} s; {count}.",
-        "",
-    ]
 
 
 def render(records: list[dict], meta: dict) -> str:
@@ -558,18 +504,6 @@ def render(records: list[dict], meta: dict) -> str:
 # ----------------------------------------------------------------------------- command
 
 
-def _commit() -> str:
-    try:
-        return subprocess.run(
-            ["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"],
-            capture_output=True,
-            text=True,
-            check=True,
-        ).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
-
-
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sets", type=int, default=4, help="parameter sets per family")
@@ -638,14 +572,13 @@ def main(argv: list[str] | None = None) -> int:
         done.write_text(json.dumps(rec, default=str))
         return rec
 
-    with ThreadPoolExecutor(max_workers=max(1, args.jobs)) as pool:
-        futs = {pool.submit(one, c): c for c in cases}
-        for fut in as_completed(futs):
-            rec = fut.result()
-            records.append(rec)
-            status = "ok" if rec["success"] else "FAIL " + why(rec)
-            print(f"[{len(records)}/{len(cases)}] {rec['case']}: {status}", flush=True)
-            save()
+    def done(rec: dict, _count: int) -> None:
+        records.append(rec)
+        status = "ok" if rec["success"] else "FAIL " + why(rec)
+        print(f"[{len(records)}/{len(cases)}] {rec['case']}: {status}", flush=True)
+        save()
+
+    run_cases(cases, one, args.jobs, done)
     save()
     print(f"wrote {out} and {jpath}")
     return 0

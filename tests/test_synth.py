@@ -119,3 +119,35 @@ def test_round_significant_and_write_dataset(tmp_path):
     assert longest <= len("-0.0001234567")
     with pytest.raises(HystdiscError, match="already exists"):
         write_dataset(ds, path)
+
+
+def test_prefilter_is_the_rigs_moving_average(tmp_path):
+    # the filter a rig's [filter] table declares, as the fit applies it
+    from hystdisc.cli import main
+    from hystdisc.fitting.measurement import causal_average
+
+    kw = dict(currents=(0, 1), duration=2.0, fs=500, drives=["0.1@2"], noise=0.01, seed=3)
+    kw["theta_noise"] = 1e-4
+    model = Model("dahl", {"k_s": 0.0})
+    raw = generate(model, "driven", **kw)
+    filt = generate(model, "driven", prefilter={"period_fraction": 0.1}, **kw)
+    for a, b in zip(raw, filt, strict=True):  # 0.1 of a 2 Hz period at 500 Hz: 25 samples
+        np.testing.assert_allclose(b.torque, causal_average(a.torque, 25), rtol=0, atol=1e-12)
+        np.testing.assert_allclose(b.theta, causal_average(a.theta, 25), rtol=0, atol=1e-12)
+        assert not np.allclose(a.torque, b.torque)
+    one = generate(model, "driven", prefilter={"window": 7, "channels": ["torque"]}, **kw)
+    np.testing.assert_array_equal(one[0].theta, raw[0].theta)
+    np.testing.assert_allclose(one[0].torque, causal_average(raw[0].torque, 7), atol=1e-12)
+    with pytest.raises(HystdiscError, match="records no input channel"):
+        generate(model, "driven", prefilter={"window": 7, "channels": ["input"]}, **kw)
+    with pytest.raises(HystdiscError, match="exactly one of window and period_fraction"):
+        generate(model, "driven", prefilter={"channels": ["torque"]}, **kw)
+    # the command line gives the same data as the API
+    out = tmp_path / "f.csv"
+    args = ["simulate", "--model", "dahl", "--set", "k_s=0", "--experiment", "driven"]
+    args += ["--currents", "0,1", "--duration", "2", "--fs", "500", "--drive", "0.1@2"]
+    args += ["--noise", "0.01", "--theta-noise", "1e-4", "--seed", "3", "--quiet"]
+    assert main([*args, "--prefilter", "period_fraction=0.1", "-o", str(out)]) == 0
+    back = read_csv(out)
+    np.testing.assert_allclose(back[1].torque, filt[1].torque, rtol=1e-6)
+    np.testing.assert_allclose(back[1].theta, filt[1].theta, rtol=1e-6, atol=1e-12)

@@ -8,6 +8,7 @@ Examples::
     hystdisc simulate --model bouc-wen --set k_s=0 --experiment driven --drive 0.3@1 -o d.csv
     hystdisc simulate --scenario data_synth/dahl.toml --seed 7 -o dahl_seed7.csv
     hystdisc simulate --model dahl --noise 1e-3 --spikes 6:0.05 -o dahl_spikes.csv
+    hystdisc simulate --model dahl --experiment driven --prefilter period_fraction=0.1 -o f.csv
     hystdisc simulate --regenerate data_synth --force
 """
 
@@ -83,6 +84,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         ),
     ):
         p.add_argument(flag, metavar=metavar, help=text)
+    p.add_argument(
+        "--prefilter",
+        metavar="window=N|period_fraction=F[,channels=A+B]",
+        help="the recorded channels passed through a causal moving average of N samples or "
+        "of F of each run's motion period (zero initial state; a rig's [filter], which a rig "
+        "file given to discover --rig declares); channels default to all recorded, e.g. "
+        "channels=theta+torque",
+    )
     p.add_argument(
         "--drive",
         action="append",
@@ -167,6 +176,31 @@ def parse_input(text: str) -> dict[str, Any]:
     return spec
 
 
+def parse_prefilter(text: str) -> dict[str, Any]:
+    """``"period_fraction=0.1,channels=theta+torque"`` -> a ``[filter]`` table.
+
+    Examples
+    --------
+    >>> parse_prefilter("window=5,channels=torque")
+    {'window': 5, 'channels': ['torque']}
+    """
+    out: dict[str, Any] = {}
+    for part in (s.strip() for s in text.split(",")):
+        key, sep, val = (s.strip() for s in part.partition("="))
+        if not sep or key not in ("window", "period_fraction", "channels"):
+            raise HystdiscError(
+                f"--prefilter {text!r} is not window=N, period_fraction=F or channels=A+B; "
+                "fix: write e.g. --prefilter period_fraction=0.1"
+            )
+        if key == "window":
+            out[key] = _int(val, "--prefilter window")
+        elif key == "period_fraction":
+            out[key] = _float(val, "--prefilter period_fraction")
+        else:
+            out[key] = [c.strip() for c in val.split("+") if c.strip()]
+    return out
+
+
 def settings_from_args(args: argparse.Namespace) -> dict[str, Any]:
     """Scenario (if any) overridden by the command-line flags."""
     from hystdisc.simulation.synth import load_scenario, parse_drive
@@ -210,6 +244,8 @@ def settings_from_args(args: argparse.Namespace) -> dict[str, Any]:
                 f"--spikes {args.spikes!r} is not N:SIZE; fix: write e.g. --spikes 6:0.05"
             )
         sc["spikes"] = (_int(count, "--spikes count"), _float(size, "--spikes size"))
+    if args.prefilter is not None:
+        sc["prefilter"] = parse_prefilter(args.prefilter)
     if args.drive:
         sc["drives"] = [parse_drive(d) for d in args.drive]
     if args.input is not None:

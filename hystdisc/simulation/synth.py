@@ -15,7 +15,9 @@ Measurement model: additive Gaussian noise of standard deviation ``noise`` on th
 signal (``theta`` for release/forced, ``torque`` for driven, plus ``theta_noise`` on the
 driven ``theta``), drawn from ``np.random.default_rng(seed)``, then optional encoder
 quantization of ``theta`` (``encoder_counts`` per turn: ``q = 2 pi / counts``), then
-optional glitches: ``spikes = (N, SIZE)`` adds ``+-SIZE`` to ``N`` single samples of the
+an optional prefilter (a rig's ``[filter]`` table: :mod:`hystdisc.simulation.prefilter`),
+then optional glitches:
+``spikes = (N, SIZE)`` adds ``+-SIZE`` to ``N`` single samples of the
 measured signal drawn at random over all runs (a sensor's isolated spikes; their own
 random stream, so the noise is the same with and without them).
 
@@ -57,6 +59,7 @@ from hystdisc.data import Dataset, Run, parse_toml, write_csv
 from hystdisc.errors import HystdiscError
 from hystdisc.models import Model, TermModel
 from hystdisc.simulation import simulate_driven_runs, simulate_mech, simulate_system
+from hystdisc.simulation.prefilter import apply_prefilter, check_prefilter
 
 __all__ = [
     "DEFAULT_CURRENTS",
@@ -101,6 +104,7 @@ SCENARIO_KEYS = (
     "seed",
     "encoder_counts",
     "spikes",
+    "prefilter",
     "drives",
     "input",
     "output",
@@ -320,6 +324,7 @@ def generate(
     theta_noise: float = 0.0,
     delay: float = 0.0,
     spikes: tuple[int, float] | None = None,
+    prefilter: Mapping[str, Any] | None = None,
 ) -> Dataset:
     """Simulate a model on the rig and measure it with noise and quantization.
 
@@ -364,6 +369,13 @@ def generate(
         of the measured signal (``theta``, or the driven ``torque``), at distinct samples
         drawn uniformly over all runs by ``np.random.default_rng([seed, 1])``. The noise
         draws do not change with them.
+    prefilter : dict, optional
+        A filter the recorded signals passed through, as a rig's ``[filter]`` table:
+        ``{"window": N}`` samples or ``{"period_fraction": F}`` of each run's motion
+        period, and ``channels`` (default: every recorded channel, ``theta`` and the
+        driven ``torque`` or the forced ``input``). Each channel is replaced by its causal
+        moving average with zero initial state, after the noise and the quantization and
+        before the spikes (a filtered ``theta`` filters the stored ``theta_dot`` too).
 
     Returns
     -------
@@ -445,6 +457,7 @@ def generate(
     if not kind.has_input and input_spec is not None:
         raise HystdiscError(f"an input is only used by forced experiments, not {exp}; fix: drop it")
     n_spikes, spike_size = _check_spikes(spikes, n * len(cur) * max(per_current, 1))
+    filt = check_prefilter(prefilter, kind)
     t = np.arange(n) / fs
     rng = np.random.default_rng(int(seed))
     label = repr(mdl) if isinstance(mdl, Model) else "a term model"
@@ -492,6 +505,7 @@ def generate(
             torque = torque + noise * rng.standard_normal(n)
             theta_m = _measure_theta(th, theta_noise, q, rng)
             runs.append(Run(str(k), t.copy(), theta_m, c, torque=torque, theta_dot=w.copy()))
+        apply_prefilter(runs, filt, source)
         _add_spikes([r.torque for r in runs], n_spikes, spike_size, int(seed))
         return Dataset(runs, exp, source)
 
@@ -533,6 +547,7 @@ def generate(
         theta_m = _measure_theta(np.interp(t - delay, t, theta), noise, q, rng)
         extra = {"input": inputs[k]} if inputs is not None else {}
         runs.append(Run(str(k), t.copy(), theta_m, c, **extra))
+    apply_prefilter(runs, filt, source)
     _add_spikes([r.theta for r in runs], n_spikes, spike_size, int(seed))
     return Dataset(runs, exp, source)
 
@@ -664,7 +679,7 @@ def load_scenario(path: str | os.PathLike[str]) -> dict[str, Any]:
     Keys: ``model`` (family), ``[params]``, ``[effects.<name>]`` tables (an empty table
     takes the effect's defaults), ``currents``, ``experiment``, ``theta0``, ``duration``,
     ``fs``, ``noise``, ``theta_noise``, ``delay`` (s), ``seed``, ``encoder_counts``,
-    ``spikes`` (``[N, SIZE]``), ``drives`` (tables
+    ``spikes`` (``[N, SIZE]``), ``[prefilter]`` (a rig's ``[filter]`` table), ``drives`` (tables
     ``{amplitude, frequency}`` or ``"A@f"`` strings), ``[input]``, ``output`` (CSV file
     name, relative to the scenario file) and the informative ``declared`` (the family a
     user would declare for these data) and ``description``. Unknown keys are an error.
@@ -767,6 +782,8 @@ def normalize_scenario(raw: Mapping[str, Any], source: str = "scenario") -> dict
                         source, f"{key} = {v!r} is not a whole number", "give an integer"
                     )
                 sc[key] = v
+        if "prefilter" in raw:  # checked by generate (simulation.prefilter)
+            sc["prefilter"] = raw["prefilter"]
         if "drives" in raw:
             if not isinstance(raw["drives"], list):
                 raise _scenario_error(
@@ -817,6 +834,7 @@ def generate_from_scenario(scenario: Mapping[str, Any]) -> Dataset:
         "theta_noise",
         "delay",
         "spikes",
+        "prefilter",
     ):
         if scenario.get(key) is not None:
             kw[key] = scenario[key]
