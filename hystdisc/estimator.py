@@ -49,6 +49,8 @@ from threadpoolctl import threadpool_limits
 
 from hystdisc.closing import LoopResult, close_loop
 from hystdisc.closing.again import compare_again
+from hystdisc.closing.measured import add_to_fits
+from hystdisc.closing.measured import judge as judge_measured
 from hystdisc.closing.reduction import Reduction
 from hystdisc.closing.reselect import Context, Reselection
 from hystdisc.closing.residual import NOISE_RATIO
@@ -66,9 +68,9 @@ from hystdisc.discovery import (
     EqData,
     describe_structure,
     family_start,
-    family_starts,
     fit_shape,
 )
+from hystdisc.discovery.delay import scan_delay
 from hystdisc.errors import HystdiscError, HystdiscWarning
 from hystdisc.faults import Failures
 from hystdisc.fitting import (
@@ -88,8 +90,9 @@ from hystdisc.fitting.multistart import (
     helper_families,
     mapped_starts,
     nesting_pass,
-    random_starts,
+    poor_predictions,
     system_fit,
+    term_starts,
 )
 from hystdisc.fitting.parametrization import z_scale
 from hystdisc.fitting.prepare import prepare_data
@@ -102,8 +105,6 @@ from hystdisc.simulation.admissibility import check_admissible
 from hystdisc.simulation.parallel import limit_threads, map_tasks, map_tasks_after
 
 _SAY_LOCK = threading.Lock()
-#: Other basins of a term family's stage-1 grid among its output-error starts.
-GRID_BASINS = 2
 #: Families whose BIC lies within this of the selected one "fit equally well".
 EQUAL_FIT_BIC = 6.0
 
@@ -177,7 +178,7 @@ class Discovery(BaseEstimator):
         a chosen law that is not linear is carried into the final model.
     n_starts : int
         Starts of each term family's output-error fit (:mod:`hystdisc.fitting.multistart`):
-        stage 1's, up to :data:`GRID_BASINS` other basins of its shape's stage-1 grid, then
+        stage 1's, up to :data:`~hystdisc.fitting.multistart.GRID_BASINS` other basins of its shape's stage-1 grid, then
         random perturbations of stage 1's inside the admissible box; when the first ends
         above the noise floor, these, a start from the per-level fits and the optima of
         the related families (``Family.start_from``: Dahl in LuGre, the other Bouc-Wen
@@ -342,47 +343,6 @@ class Discovery(BaseEstimator):
         shape = FAMILY_SHAPE[name]
         return self.stage1_[shape].s if shape in getattr(self, "stage1_", {}) else None
 
-    def _family_starts(
-        self, eq: EqData, name: str, first: dict[str, float] | None = None
-    ) -> list[tuple[str, dict[str, float]]]:
-        """The ``n_starts`` starts of a term family: stage 1's (``first`` when already
-        made), other basins of its shape's grid (up to :data:`GRID_BASINS`), random
-        perturbations of stage 1's."""
-        n = max(int(self.n_starts), 1)
-        basins = min(GRID_BASINS, n - 1)
-        starts = family_starts(
-            eq, name, basins, s0=self._shape0(name), one_level=self.single_current_, first=first
-        )
-        extra = n - len(starts)
-        if extra > 0:
-            starts += random_starts(name, starts[0][1], extra, seed=self.seed)
-        return starts
-
-    def _poor_predictions(
-        self, fd: FitData, good_rms: float, with_heldout: Callable[[str], OEFit]
-    ) -> dict[str, float]:
-        """The term families whose first fit is at the floor (``good_rms``) but whose
-        held-out error is above it: name -> held-out RMS.
-
-        Their held-out errors are computed here (``with_heldout``), not later, and kept
-        in ``family_fits_``; nothing is computed without held-out data (``heldout=False``
-        or a single run).
-        """
-        if not self.heldout or fd.n_runs < 2:
-            return {}
-        names = [
-            n
-            for n, f in self.family_fits_.items()
-            if n in FAMILIES and not f.is_system and f.rms <= good_rms
-        ]
-        self.family_fits_.update(zip(names, self._map(with_heldout, names), strict=True))
-        out = {}
-        for n in names:
-            h = self.family_fits_[n].heldout_rms
-            if h is not None and not h <= good_rms:  # a diverged fold (inf) counts too
-                out[n] = float(h)
-        return out
-
     def _system_fit(self, name: str, base: OEFit, fd: FitData, say, failures) -> OEFit:
         """A system family from its starts mapped from ``base`` (:func:`system_fit`)."""
         fixed = {p: 0.0 for p in FAMILIES[name].current_params} if self.single_current_ else {}
@@ -438,6 +398,8 @@ class Discovery(BaseEstimator):
     def _fit(self, dataset: Dataset, say: Callable[[str], None]) -> Discovery:
         # a task that fails (a family, a start, a fold, an effect) is recorded and dropped
         failures = Failures()
+        measured_effects: list[str] = []  # measurement effects every family carries
+        measured: dict[str, float] = {}  # and their parameters' starts
         if not isinstance(dataset, Dataset):
             raise TypeError("Discovery.fit expects a hystdisc.data.Dataset (see hystdisc.load)")
         if self.model is not None:
@@ -516,9 +478,10 @@ class Discovery(BaseEstimator):
         def family_par(name, start):
             """``name`` started at ``start``: its z scale chosen there, the current terms
             held at 0 at a single current."""
-            start, norm = z_scale(name, start)
+            start, norm = z_scale(name, {**start, **measured})
             fixed = {p: 0.0 for p in FAMILIES[name].current_params} if self.single_current_ else {}
-            return FamilyParametrization(name, eq.experiment, start, (), fixed, norm)
+            return FamilyParametrization(name, eq.experiment, start, tuple(measured_effects),
+                                         fixed, norm)  # fmt: skip
 
         def first_fit(name, s0):
             """``name`` fitted from its stage-1 start: the search of its shape from the
@@ -580,13 +543,31 @@ class Discovery(BaseEstimator):
         }
         self.discovered_name_ = describe_structure(best.terms, best.shape)
         same = same_structure(best)
+        # a delay between the recorded channels enters every family before they are
+        # compared: compared without it, the one that best absorbs the lag would win
+        self.delay_scan_ = None
+        if exp.motion_imposed:
+            self.delay_scan_ = failures.guard("delay scan", scan_delay, eq, best.terms, best.s,
+                                              best.shape, fd.t, fd.y)  # fmt: skip
+        if self.delay_scan_ is not None and self.delay_scan_.found:
+            say(f"stage 2: a channel delay of {self.delay_scan_.tau:.3g} s enters every family")
+            measured_effects.append("channel_delay")
+            measured["tau_d"] = self.delay_scan_.tau
+            firsts = list(add_to_fits(fd, dict(enumerate(firsts)), "channel_delay", measured,
+                                      self.max_nfev, self._map, failures).values())  # fmt: skip
 
         def more_starts(name, mapper=None):
             """The family from its other starts (its stage-1 fit is the first), screened
-            on the threads of ``mapper`` when given."""
-            pars = []
+            on the threads of ``mapper`` when given; its first fit when they fail."""
             first = self.family_fits_[name]
-            for label, start in self._family_starts(eq, name, first.par.params(first.par.x0)):
+            found = failures.guard(f"{name} more starts", starts_of, name, first, mapper)
+            return first if found is None else found  # its first fit stands
+
+        def starts_of(name, first, mapper):
+            pars = []
+            n = max(int(self.n_starts), 1)
+            for label, start in term_starts(eq, name, n, self.seed, self._shape0(name),
+                                            self.single_current_, first.par.params(first.par.x0)):
                 pars.append((label, family_par(name, start)))
             if (lv := levels_start(fd, first.par, first.params)) is not None:
                 pars.append(("current levels", first.par.like(lv, first.par.effects)))
@@ -599,13 +580,8 @@ class Discovery(BaseEstimator):
                     pars.append((label, family_par(name, reading)))
             # a first start at the floor that predicts poorly is not trusted (no good_rms)
             good = None if name in poor else NOISE_RATIO * fd.noise_std
-            found = failures.guard(
-                f"{name} more starts",
-                best_of_starts,
-                fd, pars, self.max_nfev, mapper=mapper, say=say, name=name, good_rms=good,
-                first=first, failures=failures,
-            )  # fmt: skip
-            return first if found is None else found  # its first fit stands
+            return best_of_starts(fd, pars, self.max_nfev, mapper=mapper, say=say, name=name,
+                                  good_rms=good, first=first, failures=failures)  # fmt: skip
 
         def with_heldout(name):
             fit = self.family_fits_[name]
@@ -623,7 +599,9 @@ class Discovery(BaseEstimator):
         # a first fit at the floor that does not predict the held-out runs is no proof of
         # the optimum: a seed-form Bouc-Wen at 1.009x the noise with n = 0.01 predicted
         # them at 164x, where its true optimum (66 sigma^2 lower RSS) predicts them at 1x
-        poor = self._poor_predictions(fd, good, with_heldout) if self.n_starts > 1 else {}
+        poor = {}
+        if self.n_starts > 1 and self.heldout and fd.n_runs >= 2:
+            poor = poor_predictions(self.family_fits_, good, with_heldout, self._map)
         # a family above the floor whose related families were not asked for (a declared
         # family, a short --families list) gets them fitted too, as its starts only
         helping = helper_families(self.family_fits_, good, poor) if self.n_starts > 1 else {}
@@ -704,6 +682,15 @@ class Discovery(BaseEstimator):
         self.family_, self.selection_note_ = self._select()
         self.declared_ = self.model is not None
         selected = self.family_fits_[self.family_]
+        self.measured_ = []  # each measurement effect judged on the selected family
+        for name in measured_effects:
+            why = "found by the delay scan of stage 1, in every family of the table"
+            found = failures.guard(f"effect {name}", judge_measured, fd, selected, name,
+                                   self.max_nfev, self.heldout, why)  # fmt: skip
+            if found is not None:
+                selected, verdict = found
+                self.family_fits_[self.family_] = selected
+                self.measured_.append(verdict)
         # a glitch the selected model reproduces is a feature: it enters the fits again
         self.outliers_ = confirm_glitches(glitches, fd, selected.predictions)
         if self.outliers_.count:
@@ -741,8 +728,8 @@ class Discovery(BaseEstimator):
             ctx = Context(fd, eq, self.envelope_, close, self._stage1_shape, self.max_nfev,
                           self.heldout, self._map, say)  # fmt: skip
             again = failures.guard("comparison with the effects", compare_again,
-                                   {n: self.family_fits_[n] for n in fams}, self.family_,
-                                   self.loop_, ctx)  # fmt: skip
+                                   dict(self.family_fits_), self.family_, self.loop_,
+                                   ctx)  # fmt: skip
             if again is not None:
                 self.reselection_, self.reduction_ = again.reselection, again.reduction
             if again is not None and again.bics is not None:  # outliers as first confirmed
@@ -755,7 +742,8 @@ class Discovery(BaseEstimator):
             n for n, b in bics.items() if b - ref < EQUAL_FIT_BIC and n != self.family_
         )
         self.final_fit_ = selected if self.loop_ is None else self.loop_.fit
-        self.effects_ = [] if self.loop_ is None else list(self.loop_.effects)
+        kept = [v["entry"]["name"] for v in self.measured_ if v["entry"] is not None]
+        self.effects_ = kept + ([] if self.loop_ is None else list(self.loop_.effects))
         self.final_admissibility_ = (
             self.admissibility_[self.family_]
             if self.final_fit_ is selected  # the loop accepted nothing: already checked

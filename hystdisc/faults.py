@@ -82,7 +82,7 @@ class Failures:
             return None
 
     def summary(self) -> str:
-        """Every failure as ``name: reason``, separated by ``; ``."""
+        """Every failure as ``name: reason``, the failures separated by semicolons."""
         return "; ".join(f"{k}: {v}" for k, v in self.items().items())
 
     def items(self) -> dict[str, str]:

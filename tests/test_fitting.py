@@ -188,7 +188,7 @@ def test_a_diverging_fold_says_why_its_heldout_error_is_missing(monkeypatch):
     fit = OutputErrorFitter(fd, par, max_nfev=60).fit(heldout=False)
     names = list(par.names)
 
-    def unstable(self, fold, v_gn, rss_gn):  # the fit without the fold: negative damping
+    def unstable(self, fold, v_gn, rss_gn, full=False):  # negative damping, quick or full
         x = np.array(v_gn[: self.npar])
         x[names.index("k_x")] = -500.0
         return x

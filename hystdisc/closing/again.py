@@ -52,7 +52,8 @@ def compare_again(table: Mapping[str, OEFit], family: str, loop: Any, ctx: Conte
     Parameters
     ----------
     table : mapping of str to OEFit
-        The family table's fits (term families), without effects; ``family`` among them.
+        The family table's fits (every family, state-space ones included), without
+        effects; ``family`` among them.
     family : str
         The family selected from the table.
     loop : LoopResult

@@ -141,7 +141,8 @@ def reduce_family(
     before : str
         The selected family.
     family_fits : mapping of str to OEFit
-        The family table's fits (term families), without effects.
+        The family table's fits (every family, state-space ones included), without
+        effects.
     ctx : Context
         The data and the callbacks (:class:`~hystdisc.closing.reselect.Context`).
 

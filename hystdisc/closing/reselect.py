@@ -148,7 +148,8 @@ def refit_families(
         added = [e for e in effects if e in can]
         if not added:
             return fit
-        start = stage1_start(eq, fit, added, data, s0=shapes(fit))
+        # a state-space family has no stage-1 form: its refit starts at its own optimum
+        start = None if fit.is_system else stage1_start(eq, fit, added, data, s0=shapes(fit))
         return refit_with(
             data,
             fit,
@@ -243,7 +244,8 @@ def reselect(
     Parameters
     ----------
     family_fits : mapping of str to OEFit
-        The family table's fits (term families), without effects.
+        The family table's fits (every family, state-space ones included), without
+        effects.
     before : str
         The family selected from the table.
     loop : LoopResult
@@ -274,7 +276,7 @@ def reselect(
         and final.bic < own.bic
     ):
         fits[before] = final
-    adm = {n: check_admissible(f.term_part, envelope) for n, f in fits.items()}
+    adm = {n: check_admissible(_admissible_form(f), envelope) for n, f in fits.items()}
     pick, _ = select_family(fits, adm)
     res = Reselection(list(effects), fits, {n: a.ok for n, a in adm.items()}, before, pick)
     res.final_heldout[before] = final.heldout_rms
@@ -309,7 +311,7 @@ def effect_values(final: OEFit, effects: Sequence[str]) -> dict[str, float]:
     accepted), or the final model's coefficient of a one-term effect's term (an effect
     whose term the family carries natively: :mod:`hystdisc.closing.reduction`); the
     finite ones."""
-    torque = final.term_part.torque
+    torque = {} if final.is_system else final.term_part.torque
     out = {}
     for e in effects:
         eff = EFFECTS[e]
@@ -325,11 +327,14 @@ def judge(fits: Mapping[str, OEFit], envelope: Any) -> tuple[str, dict[str, Any]
     """The family table's rule (:func:`~hystdisc.fitting.selection.select_family`) on
     ``fits`` (final models: a state-space one judged as a system), with each one's
     admissibility."""
-    adm = {
-        n: check_admissible(f.model if f.is_system else f.term_part, envelope)
-        for n, f in fits.items()
-    }
+    adm = {n: check_admissible(_admissible_form(f), envelope) for n, f in fits.items()}
     return select_family(fits, adm)[0], adm
+
+
+def _admissible_form(fit: OEFit) -> Any:
+    """What the admissibility check takes of ``fit``: a state-space model as a system,
+    any other as its term part."""
+    return fit.model if fit.is_system else fit.term_part
 
 
 def versus(a: OEFit, b: OEFit) -> str:

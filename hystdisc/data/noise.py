@@ -74,7 +74,8 @@ def detect_period(x: np.ndarray, noise_std: float | None = None) -> int | None:
     The lag ``P`` (at most a :data:`MIN_PERIODS`-th of the record, beyond the signal's
     first decorrelation) at which the signal repeats best; the smallest such lag (the
     fundamental, not a multiple) is taken. It counts only when the signal repeats to
-    within its own noise: ``rms(x[P:] - x[:-P])`` at most ``1.5 sqrt(2)`` times
+    within its own noise from its second period on (a start-up transient, such as a
+    causal filter's, does not repeat): ``rms(x[2P:] - x[P:-P])`` at most ``1.5 sqrt(2)`` times
     ``noise_std`` (or 1e-6 of the signal's RMS for a noise-free input) and at most
     :data:`REPEAT_TOL` of the RMS. A period that is no whole number of samples (a 1.3 Hz
     sine at 1 kHz) does not repeat to that accuracy and gives None.
@@ -124,7 +125,9 @@ def detect_period(x: np.ndarray, noise_std: float | None = None) -> int | None:
     while k < hi and ms[k + 1] < ms[k]:  # to the bottom of its dip
         k += 1
     noise = estimate_noise(v) if noise_std is None else float(noise_std)
-    rms_diff = float(np.sqrt(np.mean((v[k:] - v[:-k]) ** 2)))
+    # judged from the second period on: a start-up transient (a causal filter's, a
+    # ramp's) does not repeat, the steady state does
+    rms_diff = float(np.sqrt(np.mean((v[2 * k :] - v[k:-k]) ** 2)))
     if rms_diff > max(1.5 * math.sqrt(2.0) * noise, 1e-6 * math.sqrt(var)):
         return None
     return k

@@ -85,6 +85,33 @@ class FitData:
         """Each run's output filter window in measured samples (0: not filtered)."""
         return list(self.filter_windows) if self.filter_windows is not None else [0] * self.n_runs
 
+    def correlation_lengths(self) -> np.ndarray:
+        """Each run's correlation length of its measurement noise, in fit samples: the sum
+        of the autocorrelation of white noise passed through the run's declared filter
+        (a causal moving average of ``w`` samples: ``w``), over the run's decimation; 1
+        for an unfiltered run. The samples of a filtered run are not independent: ``w``
+        of them carry the information of one (:meth:`n_eff`), and the intervals of a fit
+        widen by ``sqrt(w)``.
+
+        Examples
+        --------
+        >>> t = np.linspace(0.0, 1.0, 5)
+        >>> fd = FitData("driven", ["a", "b"], [t, t], [t, t], np.zeros(2), [t, t], [t, t],
+        ...              [t, t], [t > 0, t > 0], filter_windows=[10, 0])
+        >>> fd.correlation_lengths().tolist(), fd.n_eff()
+        ([10.0, 1.0], 4.4)
+        """
+        steps = self.run_steps()
+        return np.array(
+            [max(1.0, w / max(s, 1)) for w, s in zip(self.run_filters(), steps, strict=True)]
+        )
+
+    def n_eff(self) -> float:
+        """The effective number of independent residuals: each run's masked samples over
+        its :meth:`correlation_lengths`."""
+        lengths = self.correlation_lengths()
+        return float(sum(m.sum() / c for m, c in zip(self.mask, lengths, strict=True)))
+
     def run_steps(self) -> list[int]:
         """Each run's decimation factor against the data it was measured as (1: all)."""
         return list(self.steps) if self.steps is not None else [1] * self.n_runs

@@ -202,7 +202,8 @@ def exact_jacobian(
             cols = np.empty((y.size, k + nnu))
             cols[:, :k] = S[:, : len(moving)] @ D[q][moving]
             cols[:, k:] = S[:, len(moving) :]
-            measured_columns(data, par, q, x, delay_of, y, cols, delays, rel_step)
+            measured_columns(data, par, q, x, delay_of, y, cols, delays, rel_step,
+                             lambda xj, q=q: par.simulate(data, [par.model(xj)], [q], [nu[q]])[0])  # fmt: skip
             rows = slice(offsets[q], offsets[q + 1])
             Jm[rows, :k] = cols[masks[q], :k]
             Jm[rows, k + q * nnu : k + (q + 1) * nnu] = cols[masks[q], k:]
@@ -223,18 +224,23 @@ def measured_columns(
     cols: np.ndarray,
     delays: np.ndarray,
     rel_step: float,
+    resimulate: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> None:
     """Run ``r``'s derivative columns ``cols`` of the simulated output ``y`` through the
     measurement chain (in place), plus the delay's share of the ``delays`` columns.
 
-    ``delay_of(x)`` is the output's delay at the free parameters ``x``; a parameter that
+    ``delay_of(x)`` is the channel delay at the free parameters ``x``; a parameter that
     moves it gets the forward difference of the measured output in the delay alone (the
-    step rule of :func:`difference_jacobian`, its floor from the free parameters).
+    step rule of :func:`difference_jacobian`, its floor from the free parameters): the
+    output delayed again, or, for a driven run (whose model sees the delay in its motion:
+    :func:`~hystdisc.fitting.simulate.delayed_motion`), ``resimulate(xj)``, the run's
+    measured output simulated at ``xj``.
     """
     t = data.t[r]
     window = data.run_filters()[r]
     step = data.run_steps()[r]
-    tau = delay_of(x)
+    driven = data.exp.motion_imposed
+    tau = 0.0 if driven else delay_of(x)
     if tau != 0.0 or window > 1:
         for q in range(cols.shape[1]):
             cols[:, q] = measured_output(t, cols[:, q], tau, window, step)
@@ -243,11 +249,39 @@ def measured_columns(
     y0 = measured_output(t, y, tau, window, step)
     steps = inside_steps(x, difference_steps(x, rel_step), par)
     for j in np.flatnonzero(delays):
+        if driven:  # central differences of runs simulated on the shifted motion
+            if resimulate is None:
+                raise ValueError("a driven run's delay column needs resimulate")
+            cols[:, j] += _delay_column(x, j, par, float(np.median(np.diff(t))), resimulate)
+            continue
         h = steps[j]
         xj = x.copy()
         xj[j] += h
         yj = measured_output(t, y, delay_of(xj), window, step)
         cols[:, j] += (yj - y0) / h
+
+
+#: The step of a driven run's delay column, as a share of its sample interval: the motion
+#: is shifted by linear interpolation, smooth in the delay far below a sample, and the
+#: integrator's tolerance needs a step well above its own error.
+DELAY_STEP = 1e-3
+
+
+def _delay_column(
+    x: np.ndarray, j: int, par: Parametrization, dt: float, resimulate: Callable
+) -> np.ndarray:
+    """The derivative of a driven run's measured output along parameter ``j`` (which
+    moves the channel delay) by central differences of ``resimulate`` (one-sided at a
+    bound)."""
+    h = DELAY_STEP * dt
+    up, down = x.copy(), x.copy()
+    up[j] += h
+    down[j] -= h
+    if up[j] > par.upper[j]:
+        up = x.copy()
+    if down[j] < par.lower[j]:
+        down = x.copy()
+    return (resimulate(up) - resimulate(down)) / (up[j] - down[j])
 
 
 def difference_jacobian(

@@ -47,12 +47,13 @@ from collections.abc import Callable, Collection, Mapping, Sequence
 
 import numpy as np
 
+from hystdisc.discovery import family_starts
 from hystdisc.errors import HystdiscError
 from hystdisc.faults import Failures
 from hystdisc.fitting.data import FitData
 from hystdisc.fitting.output_error import OEFit, OutputErrorFitter
 from hystdisc.fitting.parametrization import FamilySystemParametrization, Parametrization
-from hystdisc.models import FAMILIES, RIG_PARAMS, get_family
+from hystdisc.models import EFFECTS, FAMILIES, RIG_PARAMS, get_family
 
 #: Levenberg-Marquardt iterations of each start before the best is continued.
 SCREEN_NFEV = 8
@@ -68,6 +69,8 @@ NESTING_RTOL = 1e-3
 #: Levenberg-Marquardt iterations of each start of a state-space family before the best
 #: start is continued to convergence.
 SYSTEM_START_NFEV = 8
+#: Other basins of a term family's stage-1 grid among its output-error starts.
+GRID_BASINS = 2
 #: At most this many nesting passes (a pass that changes nothing ends them).
 NESTING_PASSES = 3
 
@@ -230,6 +233,36 @@ def best_of_starts(
     return best
 
 
+def term_starts(
+    eq, name: str, n: int, seed: int, s0, one_level: bool, first: dict[str, float] | None = None
+) -> list[tuple[str, dict[str, float]]]:
+    """The ``n`` starts of a term family: stage 1's (``first`` when already made), other
+    basins of its shape's grid (up to :data:`GRID_BASINS`, from the shape constants
+    ``s0``), random perturbations of stage 1's (:func:`random_starts`, ``seed``)."""
+    starts = family_starts(
+        eq, name, min(GRID_BASINS, n - 1), s0=s0, one_level=one_level, first=first
+    )
+    if n > len(starts):
+        starts += random_starts(name, starts[0][1], n - len(starts), seed=seed)
+    return starts
+
+
+def poor_predictions(
+    fits: dict[str, OEFit], good_rms: float, with_heldout: Callable[[str], OEFit], mapper
+) -> dict[str, float]:
+    """The term families whose fit is at the floor (``good_rms``) but whose held-out
+    error is above it: name -> held-out RMS. Their held-out errors are computed here
+    (``with_heldout`` on the threads of ``mapper``) and kept in ``fits`` (updated)."""
+    names = [n for n, f in fits.items() if n in FAMILIES and not f.is_system and f.rms <= good_rms]
+    fits.update(zip(names, mapper(with_heldout, names), strict=True))
+    out = {}
+    for n in names:
+        h = fits[n].heldout_rms
+        if h is not None and not h <= good_rms:  # a diverged fold (inf) counts too
+            out[n] = float(h)
+    return out
+
+
 def drop_diverged(fits: Mapping[str, OEFit], failures: Failures) -> dict[str, OEFit]:
     """``fits`` without the fits whose simulation diverged at their optimum (on any run):
     each is recorded in ``failures`` with the runs, and is no result."""
@@ -330,7 +363,10 @@ def mapped_starts(family: str, fit: OEFit) -> list[dict[str, float]]:
     out = []
     for reading in readings:
         p = {k: float(v) for k, v in reading.items()}
-        for extra in ("k_s", "J"):
+        # the rig's parameters and those of the effects the fit carries (a measured
+        # channel delay) keep their values
+        carried = ("k_s", "J", *(q.name for e in fit.par.effects for q in EFFECTS[e].params))
+        for extra in carried:
             if extra in fit.params:
                 p.setdefault(extra, float(fit.params[extra]))
         if not all(np.isfinite(v) for v in p.values()):
@@ -498,12 +534,17 @@ def system_fit(
     bp = dict(base.params)
     vel = float(np.median([np.max(np.abs(w)) for w in data.theta_dot]))
     starts = fam.starts(bp, velocity=vel)
+    # the base's measurement effects (a channel delay every family carries) with their values
+    effects = tuple(
+        e for e in base.par.effects if not EFFECTS[e].terms and not EFFECTS[e].structural
+    )
+    carried = ("k_s", "J", *(q.name for e in effects for q in EFFECTS[e].params))
     for _, st in starts:
-        for k in ("k_s", "J"):
+        for k in carried:
             if k in bp:
                 st.setdefault(k, bp[k])
     pars = [
-        (label, FamilySystemParametrization(name, data.experiment, st, fixed=dict(fixed or {})))
+        (label, FamilySystemParametrization(name, data.experiment, st, effects, dict(fixed or {})))
         for label, st in starts
     ]
     return best_of_starts(

@@ -430,7 +430,11 @@ class OutputErrorFitter:
         k = len(v)
         rss = float(res @ res)
         rms = float(np.sqrt(rss / N))
-        bic = _bic(rss, N, k)
+        # a declared filter makes neighbouring residuals one measurement: BIC counts the
+        # independent ones, and the intervals widen by the correlation (both as before
+        # without a filter)
+        n_eff = self.data.n_eff() if any(self.data.run_filters()) else float(N)
+        bic = _bic(rss, N, k, n_eff=n_eff)
         s2 = rss / max(N - k, 1)
         # covariance with column scaling for conditioning
         # the small Gram matrix, column-scaled (no scaled copy of the tall Jacobian)
@@ -445,7 +449,7 @@ class OutputErrorFitter:
         tol = S.max() * 1e-10 if S.size else 0.0
         Sinv = np.where(S > tol, 1.0 / np.where(S > tol, S, 1.0), 0.0)
         cov_s = (Vt.T * Sinv**2) @ Vt
-        cov = s2 * cov_s / np.outer(scale, scale)
+        cov = s2 * cov_s / np.outer(scale, scale) * (N / n_eff)
         if self.data.quantum > 0:  # quantization error: correlated, a sandwich
             ainv = cov_s / np.outer(scale, scale)
             sizes = [int(np.count_nonzero(m)) for m in self.masks]

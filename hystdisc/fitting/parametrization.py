@@ -449,7 +449,7 @@ def z_scale(family: str, start: dict[str, float]) -> tuple[dict[str, float], str
 
     Examples
     --------
-    >>> p = {"alpha_1": 2.0, "alpha_2": 1.0, "delta": 3.0, "beta": -2.0, "gamma": 1.0, "n": 1.0}
+    >>> p = {"alpha_1": 2.0, "alpha_2": 1.0, "delta": 3.0, "beta": -2.0, "gamma": -1.0, "n": 1.0}
     >>> z_scale("bouc-wen", p)[1], z_scale("dahl", {})[1]
     ('alpha_1', 'z_sat')
     """

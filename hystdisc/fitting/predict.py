@@ -13,7 +13,7 @@ import numpy as np
 from hystdisc.data import Dataset, estimate_noise, filter_windows
 from hystdisc.data.envelope import Envelope, RunEnvelope
 from hystdisc.discovery.differentiation import differentiate
-from hystdisc.fitting.measurement import measured_output, unfiltered_motion
+from hystdisc.fitting.measurement import delayed, measured_output, unfiltered_motion
 from hystdisc.models import TermModel
 from hystdisc.registry import get_experiment
 from hystdisc.simulation import simulate_driven_runs, simulate_mech, simulate_system
@@ -114,6 +114,12 @@ def predict_dataset(
         delay = float(tm.delay)
     else:
         delay = tm[0].output_delay(tm[1])
+    if exp.motion_imposed and delay != 0.0:
+        # the force channel lags: the damper answered the motion delay s earlier (as the
+        # fit sees it: hystdisc.fitting.simulate.delayed_motion)
+        for r, d in zip(runs, ders, strict=True):
+            d.theta, d.theta_dot = delayed(r.t, d.theta, delay), delayed(r.t, d.theta_dot, delay)
+        delay = 0.0
     preds = _predict(tm, runs, ders, exp, input_hold)
     return [
         measured_output(r.t, y, delay, w) for r, y, w in zip(runs, preds, out_windows, strict=True)

@@ -19,7 +19,7 @@ import numpy as np
 
 from hystdisc.errors import HystdiscError
 from hystdisc.fitting.data import FitData
-from hystdisc.fitting.measurement import measured_output
+from hystdisc.fitting.measurement import delayed, measured_output
 from hystdisc.models import TermModel
 from hystdisc.models.compiled import N_BASE, base_coefficients
 from hystdisc.models.system import StateSpaceModel
@@ -68,9 +68,13 @@ def _split_vectors(vec: np.ndarray) -> tuple[np.ndarray, ...]:
     return tuple(np.ascontiguousarray(a) for a in parts)
 
 
-def _kernel_inputs(data: FitData, runs: list[int], nuis: list[np.ndarray]) -> dict:
+def _kernel_inputs(
+    data: FitData, runs: list[int], nuis: list[np.ndarray], delays: list[float] | None = None
+) -> dict:
     """The samples of the entries' runs, concatenated, and the step controls of a fit: the
-    arguments of the batch kernels besides the model (and, driven, the entries' runs)."""
+    arguments of the batch kernels besides the model (and, driven, the entries' runs).
+    ``delays``: each entry's channel delay, which a driven run's model sees as its motion
+    that much earlier (:func:`delayed_motion`)."""
     exp = data.exp
     steps = data.run_steps()
     # the sub-step cap is per measured sample interval: a decimated run gets q times more
@@ -83,8 +87,10 @@ def _kernel_inputs(data: FitData, runs: list[int], nuis: list[np.ndarray]) -> di
         "steps": {"ratio": FIT_RATIO, "min_sub": FIT_MIN_SUB, "max_sub": max_sub},
     }
     if exp.motion_imposed:
-        out["theta"] = np.concatenate([data.theta[r] for r in runs])
-        out["theta_dot"] = np.concatenate([data.theta_dot[r] for r in runs])
+        taus = delays if delays is not None else [0.0] * len(runs)
+        motion = [delayed_motion(data, r, tau) for r, tau in zip(runs, taus, strict=True)]
+        out["theta"] = np.concatenate([m[0] for m in motion])
+        out["theta_dot"] = np.concatenate([m[1] for m in motion])
         return out
     du = None
     if exp.has_input and data.hold == "cubic":
@@ -98,6 +104,26 @@ def _kernel_inputs(data: FitData, runs: list[int], nuis: list[np.ndarray]) -> di
     )
     out["mech"] = {"hold": data.hold, "du": du}
     return out
+
+
+def delayed_motion(data: FitData, r: int, tau: float) -> tuple[np.ndarray, np.ndarray]:
+    """Run ``r``'s imposed motion and velocity ``tau`` s earlier: ``theta(t - tau)``.
+
+    A driven test whose force channel lags the motion channel by ``tau`` records the
+    force the damper made at ``t - tau``, the damper's answer to the motion then: the
+    model is driven by the delayed motion, which is smooth, rather than its output
+    delayed (a jump of the force, a Coulomb or yield reversal, falls between samples and
+    would be smeared by the interpolation of the output). ``tau = 0``: the run's own.
+    """
+    if tau == 0.0:
+        return data.theta[r], data.theta_dot[r]
+    return delayed(data.t[r], data.theta[r], tau), delayed(data.t[r], data.theta_dot[r], tau)
+
+
+def output_delay(data: FitData, tau: float) -> float:
+    """The delay applied to a simulated output: ``tau``, except for a driven run, whose
+    model is driven by the delayed motion instead (:func:`delayed_motion`)."""
+    return 0.0 if data.exp.motion_imposed else tau
 
 
 def simulate_entries(
@@ -118,11 +144,15 @@ def simulate_entries(
     steps = data.run_steps()
     vec = kernel_vectors(data, models, runs)
     coef, b, n, J = _split_vectors(vec)
-    k = _kernel_inputs(data, runs, nuis)
+    delays = [float(tm.delay) for tm in models]
+    k = _kernel_inputs(data, runs, nuis, delays)
     t, offsets = k["t"], k["offsets"]
     work = np.zeros(ne, dtype=np.int64)
     with np.errstate(all="ignore"):
         if data.exp.motion_imposed:
+            # entries share z only on the same run seen with the same delay
+            which = {d: j for j, d in enumerate(dict.fromkeys(delays))}
+            keys = np.array([r + data.n_runs * which[d] for r, d in zip(runs, delays, strict=True)])
             out, _, status = driven_shared(
                 coef,
                 b,
@@ -131,7 +161,7 @@ def simulate_entries(
                 k["theta"],
                 k["theta_dot"],
                 offsets,
-                np.asarray(runs),
+                keys,
                 work=work,
                 **k["steps"],
             )
@@ -146,7 +176,8 @@ def simulate_entries(
         diverged = bool(status[e]) or not np.all(np.isfinite(res[e]))
         if diverged:
             res[e] = np.where(np.isfinite(res[e]), res[e], DIVERGED)
-        res[e] = measured_output(data.t[r], res[e], tm.delay, windows[r], steps[r])
+        tau = output_delay(data, tm.delay)
+        res[e] = measured_output(data.t[r], res[e], tau, windows[r], steps[r])
         bad.append(diverged)
     if status_out is not None:
         status_out.extend(bad)
@@ -184,8 +215,9 @@ def simulate_sensitivities(
     -------
     outputs : list of ndarray
         Each run's simulated output before the measurement chain (the model's ``theta``,
-        or a driven run's torque; :func:`~hystdisc.fitting.measurement.measured_output`
-        is linear in it at a fixed delay).
+        or a driven run's torque, its channel delay in the motion it was driven by;
+        :func:`~hystdisc.fitting.measurement.measured_output` is linear in it at a fixed
+        delay).
     sensitivities : list of ndarray
         Each run's derivatives of the output, shape ``(samples, len(act))``.
     diverged : list of bool
@@ -193,7 +225,7 @@ def simulate_sensitivities(
     """
     vec = kernel_vectors(data, [model] * len(runs), runs)
     coef, b, n, J = _split_vectors(vec)
-    k = _kernel_inputs(data, runs, nuis)
+    k = _kernel_inputs(data, runs, nuis, [float(model.delay)] * len(runs))
     t, offsets = k["t"], k["offsets"]
     with np.errstate(all="ignore"):
         if data.exp.motion_imposed:
@@ -211,9 +243,15 @@ def simulate_sensitivities(
     return [out[c] for c in cut], [sens[c] for c in cut], bad
 
 
-def system_inputs(data: FitData, r: int, model: StateSpaceModel) -> dict[str, np.ndarray]:
-    """Run ``r``'s exogenous signals by the names the model asks for."""
-    have = {"theta": data.theta[r], "theta_dot": data.theta_dot[r], "u": data.u[r]}
+def system_inputs(
+    data: FitData, r: int, model: StateSpaceModel, tau: float = 0.0
+) -> dict[str, np.ndarray]:
+    """Run ``r``'s exogenous signals by the names the model asks for (a driven run's
+    motion delayed by the channel delay ``tau``: :func:`delayed_motion`)."""
+    theta, theta_dot = delayed_motion(data, r, tau) if data.exp.motion_imposed else (
+        data.theta[r], data.theta_dot[r]
+    )  # fmt: skip
+    have = {"theta": theta, "theta_dot": theta_dot, "u": data.u[r]}
     return {k: have[k] for k in model.inputs}
 
 
@@ -255,6 +293,7 @@ def simulate_systems(
     def one(entry) -> tuple[np.ndarray, bool]:
         (model, values), r, nu = entry
         x0 = system_start(data, model, nu)
+        tau = model.output_delay(values)
         try:
             y = simulate_system(
                 model,
@@ -262,7 +301,7 @@ def simulate_systems(
                 x0,
                 values,
                 current=float(data.currents[r]),
-                inputs=system_inputs(data, r, model),
+                inputs=system_inputs(data, r, model, tau),
                 rtol=SYSTEM_RTOL,
                 atol=SYSTEM_ATOL,
                 max_steps_per_sample=SYSTEM_MAX_STEPS * steps[r],
@@ -272,8 +311,7 @@ def simulate_systems(
             y, bad = np.full(data.t[r].size, np.nan), True
         if bad:
             y = np.where(np.isfinite(y), y, DIVERGED)
-        tau = model.output_delay(values)
-        return measured_output(data.t[r], y, tau, windows[r], steps[r]), bad
+        return measured_output(data.t[r], y, output_delay(data, tau), windows[r], steps[r]), bad
 
     # every entry is integrated on its own: side by side on threads, the same to the bit
     done = map_entries(one, list(zip(systems, runs, nuis, strict=True)))

@@ -94,7 +94,7 @@ def system_exact_jacobian(
     overflow (the caller then takes differences).
     """
     R, k, nnu = data.n_runs, x.size, nu.shape[1]
-    system = par.model(x)[0]
+    system, values0 = par.model(x)
     P, D, delays = packed_derivative(data, par, x)
     moving = [d for d in range(P.shape[1]) if np.any(D[:, d, :] != 0.0)]
     names = data.exp.initial_state(has_z="z" in system.states)
@@ -115,7 +115,7 @@ def system_exact_jacobian(
             P[r],
             moving,
             starts,
-            inputs=_sim.system_inputs(data, r, system),
+            inputs=_sim.system_inputs(data, r, system, system.output_delay(values0)),
             rtol=_sim.SYSTEM_RTOL,
             atol=_sim.SYSTEM_ATOL,
             max_steps_per_sample=_sim.SYSTEM_MAX_STEPS * steps[r],
@@ -130,7 +130,8 @@ def system_exact_jacobian(
             if s >= 0:
                 cols[:, k + i] = dY[:, c]
                 c += 1
-        measured_columns(data, par, r, x, delay_of, y, cols, delays, rel_step)
+        measured_columns(data, par, r, x, delay_of, y, cols, delays, rel_step,
+                         lambda xj: par.simulate(data, [par.model(xj)], [r], [nu[r]])[0])  # fmt: skip
         return cols
 
     done = map_entries(one, list(range(R)))

@@ -257,7 +257,9 @@ def build_results(disc: Any, dataset: Any) -> Results:
         "equal_fits": disc.equal_fits_,
         "families": fams,
         "model": None if final.is_system else term_model_to_dict(final.term_part),
-        "effects": loop.accepted if loop is not None else [],
+        # the measurement effects judged before the loop (a channel delay), then the loop's
+        "effects": [v["entry"] for v in getattr(disc, "measured_", []) if v["entry"]]
+        + (loop.accepted if loop is not None else []),
         "unexplained": loop.unexplained if loop is not None else False,
         # the residual over the samples the fit uses (driven start-up excluded)
         "residual": loop.residual if loop is not None else _no_loop_residual(disc, dataset),
@@ -285,6 +287,9 @@ def build_results(disc: Any, dataset: Any) -> Results:
         data["outliers"] = outliers.to_dict()
     # the tasks that failed and were dropped (the run went on without them)
     data["failed"] = dict(getattr(disc, "failed_", {}))
+    scan = getattr(disc, "delay_scan_", None)
+    if scan is not None:  # the delay between the channels, scanned by stage 1
+        data["delay_scan"] = {**scan.to_dict(), "notes": [v["note"] for v in disc.measured_]}
     reselection = getattr(disc, "reselection_", None)
     if reselection is not None:  # the families compared again with the rig's effects
         data["reselection"] = reselection.to_dict()
@@ -304,7 +309,7 @@ def build_results(disc: Any, dataset: Any) -> Results:
                 "final": final_entry(
                     loop.fit,
                     disc.family_,
-                    loop.effects,
+                    getattr(disc, "effects_", loop.effects),
                     disc.final_admissibility_,
                     tuple(currents["fixed"]) if currents else (),
                 ),

@@ -207,6 +207,11 @@ class Results(Record):
         ``heldout_rms`` and ``bic``, whether the selection ``switched`` to it, the final
         models' held-out RMS and BIC (``final_heldout``, ``final_bic``) and a ``note``
         (:class:`hystdisc.closing.reduction.Reduction`).
+    delay_scan : dict or None
+        Driven data: the delay between the recorded channels scanned by stage 1
+        (:class:`hystdisc.discovery.delay.DelayScan`: ``tau``, ``dbic``, ``found``,
+        ``reach``) and, when one was found and every family carried it, the verdict on
+        the selected family (``notes``); None when not scanned.
     failed : dict of str to str
         The tasks of the discovery that failed and were dropped, each with its one-line
         reason (a family, ``<family> start '<label>'``, ``<family> held-out folds``,
@@ -263,6 +268,7 @@ class Results(Record):
     outliers: dict[str, Any] | None = None
     reselection: dict[str, Any] | None = None
     reduction: dict[str, Any] | None = None
+    delay_scan: dict[str, Any] | None = None
     failed: dict[str, str] = field(default_factory=dict)
     extra: dict[str, Any] = field(default_factory=dict, repr=False)
 

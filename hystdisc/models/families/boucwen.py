@@ -60,6 +60,8 @@ class BoucWen(Family):
         def f(s):
             return delta - beta * s**n - gamma * s ** (n + self.gamma_extra_degree)
 
+        if not delta > 0:  # z never leaves 0 upwards (a start that maps to delta <= 0)
+            return float("nan")
         hi = 1.0
         try:
             while f(hi) >= 0:
