@@ -61,15 +61,45 @@ def build_parser() -> argparse.ArgumentParser:
             name, help=mod.HELP, description=mod.DESCRIPTION, epilog=getattr(mod, "EPILOG", None)
         )
         mod.add_arguments(p)
-        p.set_defaults(run_command=mod.run)
+        p.set_defaults(run_command=mod.run, command_parser=p)
     return parser
+
+
+def _unknown_options(parser: argparse.ArgumentParser, extras: list[str]) -> str:
+    """The message for options no parser knows, with the closest known option if any.
+
+    Examples
+    --------
+    >>> p = OneLineParser(prog="hystdisc discover")
+    >>> _ = p.add_argument("--model")
+    >>> _unknown_options(p, ["--modle"])
+    'unrecognized arguments: --modle (did you mean --model?)'
+    """
+    import difflib
+
+    known = [o for a in parser._actions for o in a.option_strings if o.startswith("--")]
+    hints = {}
+    for extra in extras:
+        name = extra.split("=", 1)[0]
+        close = difflib.get_close_matches(name, known, n=1, cutoff=0.75)
+        if name.startswith("--") and close:
+            hints[name] = close[0]
+    text = f"unrecognized arguments: {' '.join(extras)}"
+    if len(hints) == 1:
+        return f"{text} (did you mean {next(iter(hints.values()))}?)"
+    if hints:
+        return f"{text} ({'; '.join(f'{k}: did you mean {v}?' for k, v in hints.items())})"
+    return text
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line ``argv`` (default ``sys.argv[1:]``) and return its exit status
     (the console script is :func:`console`)."""
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args, extras = parser.parse_known_args(argv)
+    if extras:  # the subcommand's own parser names itself and its --help in the message
+        owner = getattr(args, "command_parser", None) or parser
+        owner.error(_unknown_options(owner, extras))
     if not getattr(args, "command", None):
         parser.print_help(sys.stderr)
         return 2
