@@ -300,6 +300,6 @@ def test_a_run_at_the_top_of_the_candidate_range_is_said_to_be(poor):
         expect = int(run.amplitude == top_angle) + int(run.current == top_current)
         assert len(said) == expect, (run.label(), plan.notes)
         assert all("is the top of the candidate" in n for n in said)
-    assert any(r.amplitude == top_angle for r in plan.runs), "the case this test is about"
         for n in said:  # hystdisc design prints them
             assert f"note: {n}" in plan.report()
+    assert any(r.amplitude == top_angle for r in plan.runs), "the case this test is about"
