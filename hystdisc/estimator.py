@@ -808,7 +808,7 @@ class Discovery(BaseEstimator):
         self._check_fitted()
         return self.family_fits_[self.family_]
 
-    def predict(self, dataset: Dataset, family: str | None = None) -> list[np.ndarray]:
+    def predict(self, dataset: Dataset, family: str | None = None) -> list:
         """Simulate the fitted model on the runs of ``dataset``.
 
         Parameters
@@ -820,15 +820,21 @@ class Discovery(BaseEstimator):
 
         Returns
         -------
-        list of ndarray
-            The simulated output of each run (angle, or torque for driven runs).
+        Predictions
+            One :class:`~hystdisc.results.predictions.RunPrediction` per run, labelled:
+            ``run``, ``t``, ``current``, ``measured`` and ``predicted`` (the simulated
+            angle, or torque for driven runs); in arithmetic and numpy functions each is
+            the array ``predicted``. ``.table()`` gives the long table.
         """
+        from hystdisc.results.predictions import label_predictions
+
         self._check_fitted()
         if family is None:
             fit = self.final_fit_  # the selected family with its accepted effects
         else:
             fit = self.family_fits_[family or self.family_]
-        return predict_dataset(fit.model, dataset, self.experiment_, self.input_hold)
+        preds = predict_dataset(fit.model, dataset, self.experiment_, self.input_hold)
+        return label_predictions(dataset, preds)
 
     def score(self, dataset: Dataset) -> float:
         """Coefficient of determination R^2 of the simulated output on ``dataset``.
