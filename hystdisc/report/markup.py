@@ -14,6 +14,7 @@ from typing import Any
 #: (id, title) of every section, in order; each is an ``<h2 id=...>`` of the HTML.
 SECTIONS: tuple[tuple[str, str], ...] = (
     ("summary", "Summary"),
+    ("failed", "Failed tasks"),
     ("data", "Data"),
     ("time-series", "Measured and simulated output"),
     ("loops", "Hysteresis loops"),
@@ -119,11 +120,23 @@ def md_table(header: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
     return "\n".join(lines)
 
 
-def new_figure(nrows: int, ncols: int, width: float, height: float, **kw: Any):
-    """A figure (not registered with pyplot) and its ``nrows`` x ``ncols`` axes."""
+def new_figure(
+    nrows: int,
+    ncols: int,
+    width: float,
+    height: float,
+    layout: str | None = "constrained",
+    **kw: Any,
+):
+    """A figure (not registered with pyplot) and its ``nrows`` x ``ncols`` axes.
+
+    ``layout=None`` leaves the placement to the caller (``fig.subplots_adjust``): the
+    constrained layout measures every tick label of every panel, half the drawing time of
+    a figure of many panels.
+    """
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(width, height), layout="constrained")
+    fig = Figure(figsize=(width, height), layout=layout)
     axes = fig.subplots(nrows, ncols, squeeze=False, **kw)
     return fig, axes
 
@@ -146,11 +159,12 @@ def thin(n: int) -> slice:
 
 
 def figure_legend(fig, ax) -> None:
-    """One legend for the whole figure, outside the axes on the right."""
+    """One legend for the whole figure, above all its panels, in as many columns as fit."""
     handles, labels = ax.get_legend_handles_labels()
     if labels:
-        labels = [textwrap.fill(lab, 34) for lab in labels]  # long discovered structures
-        fig.legend(handles, labels, loc="outside right upper", fontsize="small")
+        labels = [textwrap.fill(lab, 40) for lab in labels]  # long discovered structures
+        ncols = max(1, min(len(labels), 4))
+        fig.legend(handles, labels, loc="outside upper center", fontsize="small", ncols=ncols)
 
 
 def md_line(text: str) -> str:
