@@ -205,3 +205,31 @@ def test_an_unknown_option_without_a_command_points_to_the_main_help(capsys):
         err
         == "hystdisc: error: hystdisc: unrecognized arguments: --modle; fix: see hystdisc --help\n"
     )
+
+
+@pytest.mark.parametrize("quiet", [False, True])
+def test_a_line_is_printed_before_the_first_compile(monkeypatch, capsys, quiet):
+    # issue 37: a fresh install compiled for about 40 s without a word
+    import numba
+
+    from hystdisc.cli import main
+    from hystdisc.cli import simulate as simulate_cmd
+    from hystdisc.cli.common import COMPILE_NOTE
+
+    def compiles(args):
+        @numba.njit  # not cached: compiled in this process, as a fresh install does
+        def twice(x):
+            return 2 * x
+
+        twice(1)
+        twice(1.5)  # a second compile says nothing more
+        return 0
+
+    monkeypatch.setattr(simulate_cmd, "run", compiles)
+    argv = ["simulate", "--model", "dahl", "-o", "x.csv", *(["--quiet"] if quiet else [])]
+    assert main(argv) == 0
+    err = capsys.readouterr().err
+    assert err == ("" if quiet else COMPILE_NOTE + "\n")
+    # after the command the note is gone: a compile outside it prints nothing
+    numba.njit(lambda x: x + 1)(1)
+    assert capsys.readouterr().err == ""

@@ -28,6 +28,7 @@ import warnings
 from typing import NoReturn
 
 from hystdisc import __version__
+from hystdisc.cli.common import first_compile_note
 from hystdisc.errors import HystdiscError, HystdiscWarning
 
 COMMANDS = ("discover", "predict", "simulate", "report", "study", "design")
@@ -118,7 +119,8 @@ def main(argv: list[str] | None = None) -> int:
 
     warnings.showwarning = _warn
     try:
-        return int(args.run_command(args) or 0)
+        with first_compile_note(getattr(args, "quiet", False)):
+            return int(args.run_command(args) or 0)
     except HystdiscError as exc:
         print(f"hystdisc: error: {exc}", file=sys.stderr)
         return 2
