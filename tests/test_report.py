@@ -329,18 +329,24 @@ def families_data(families_report):
 
 
 def test_one_time_series_figure_per_fit_the_selected_first_and_marked(families_data, monkeypatch):
+    from hystdisc.report.writing import Report
+
     rd = families_data
     figs = _drawn(monkeypatch, rd, "time_series", max_runs=2)
-    assert len(figs) == len(rd.fits) >= 3  # was one figure, every fit on top of the others
-    assert "(selected family)" in figs[0]["texts"][0]
-    assert figs[0]["texts"][0].startswith(rd.results.family)
-    assert all("selected" not in f["texts"][0] for f in figs[1:])
+    n = len(figs)
+    assert n == len(rd.fits) >= 3  # was one figure, every fit on top of the others
     for f in figs:
         signal_axes = f["axes"][0::2]  # left column: measured and this fit only
         assert all(ax["lines"] == 2 for ax in signal_axes), f["axes"]
         assert signal_axes[-1]["xlabel"] == "time [s]"  # the left panels had no x label
         assert f["axes"][-1]["xlabel"] == "time [s]"
         assert f["legends"] == [(2, 2)]  # one legend across the top, in one row
+    rep = Report(rd, 2, 30)
+    rep.time_series()
+    heads = [h for h in rep.html if h.startswith("<h3")]
+    assert len(heads) == n
+    assert heads[0].startswith('<h3 class="selected">' + rd.results.family + " (selected family)")
+    assert all("selected" not in h for h in heads[1:])
 
 
 def test_the_loops_legend_spans_the_figure(families_data, monkeypatch):
@@ -404,3 +410,92 @@ def test_report_of_results_json_is_the_report_of_the_data(csv_file, tmp_path, ca
     assert code == 2 and err.count("\n") == 1
     assert "the report data beside it (results.report.npz) is missing" in err
     assert "fix: rerun hystdisc discover" in err
+
+
+# ----------------------------------------------------------------------------- in a browser
+
+#: Widths the report is checked at: a laptop and a narrow window (a tablet held upright).
+WIDTHS = (1280, 700)
+_PROBE = """<script>
+window.addEventListener("load", () => {
+  const imgs = [...document.images];
+  const out = {
+    scrollWidth: document.documentElement.scrollWidth,
+    innerWidth: window.innerWidth,
+    images: imgs.length,
+    loaded: imgs.filter(i => i.complete && i.naturalWidth > 0).length,
+    widest: Math.max(0, ...imgs.map(i => i.getBoundingClientRect().right)),
+    nav: [...document.querySelectorAll("nav a")].map(a => a.getAttribute("href")),
+  };
+  const pre = document.createElement("pre");
+  pre.id = "probe";
+  pre.textContent = JSON.stringify(out);
+  document.body.appendChild(pre);
+});
+</script>"""
+
+
+def _chromium() -> str:
+    import shutil
+
+    for name in ("chromium", "chromium-browser", "google-chrome"):
+        found = shutil.which(name)
+        if found:
+            return found
+    pytest.skip(
+        "chromium is not installed, so the report is not checked in a browser "
+        "(apt-get install -y chromium chromium-driver)"
+    )
+
+
+def _browser(tmp_path: Path, width: int, url: str, *args: str) -> str:
+    import subprocess
+
+    profile = tmp_path / f"profile-{width}-{len(list(tmp_path.iterdir()))}"
+    cmd = [
+        _chromium(),
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--disable-quic",
+        "--no-first-run",
+        "--disable-background-networking",
+        "--disable-component-update",
+        "--disable-sync",
+        f"--user-data-dir={profile}",
+        f"--window-size={width},1600",
+        *args,
+        url,
+    ]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    return proc.stdout
+
+
+@pytest.mark.parametrize("width", WIDTHS)
+def test_the_report_in_headless_chromium(families_report, tmp_path, width):
+    import json
+    import re
+
+    _, _, path = families_report
+    page = tmp_path / "probed.html"
+    page.write_text(
+        path.read_text(encoding="utf-8").replace("</body>", _PROBE + "\n</body>"),
+        encoding="utf-8",
+    )
+    dom = _browser(tmp_path, width, page.as_uri(), "--dump-dom")
+    probe = json.loads(html_unescape(re.search(r'<pre id="probe">(.*?)</pre>', dom).group(1)))
+    assert probe["images"] >= 6 and probe["loaded"] == probe["images"], probe
+    # nothing runs off the right edge: no sideways scrolling, every figure inside the window
+    assert probe["scrollWidth"] <= probe["innerWidth"], probe
+    assert probe["widest"] <= probe["innerWidth"], probe
+    assert "#current-laws" not in probe["nav"] and "#summary" in probe["nav"]
+    shot = tmp_path / f"report-{width}.png"  # for a person to look at (pytest keeps tmp_path)
+    _browser(tmp_path, width, path.as_uri(), f"--screenshot={shot}")
+    assert shot.read_bytes().startswith(PNG_MAGIC) and shot.stat().st_size > 20_000
+
+
+def html_unescape(text: str) -> str:
+    import html
+
+    return html.unescape(text)

@@ -45,15 +45,17 @@ body{font-family:system-ui,-apple-system,"Segoe UI",Helvetica,Arial,sans-serif;m
 max-width:1150px;padding:1em 2em;color:#222;line-height:1.45}
 h1{font-size:1.6em;border-bottom:2px solid #444;padding-bottom:.2em}
 h2{font-size:1.3em;border-bottom:1px solid #bbb;margin-top:2em;padding-bottom:.15em}
-h3{font-size:1.05em;margin-top:1.3em}
-table{border-collapse:collapse;margin:.6em 0;font-size:.9em}
+h3{font-size:1.05em;margin-top:1.3em}h3.selected{background:#fff6d8;padding:.15em .4em}
+table{border-collapse:collapse;margin:.6em 0;font-size:.9em;display:block;max-width:100%;
+overflow-x:auto}
 th,td{border:1px solid #ccc;padding:.25em .6em;text-align:right;vertical-align:top}
 th{background:#f0f0f0}td.l,th.l{text-align:left}
 tr.sel td{background:#fff6d8;font-weight:600}
 pre{background:#f6f6f6;padding:.6em;overflow-x:auto;font-size:.88em}
 img{max-width:100%;height:auto;display:block;margin:.6em 0}
 .note{color:#555;font-size:.9em}.bad{color:#a00}.good{color:#070}
-nav a{margin-right:1em}code{font-size:.92em}
+nav{display:flex;flex-wrap:wrap;gap:.2em 1em}code{font-size:.92em}
+@media (max-width:800px){body{padding:.5em 1em}}
 """
 
 

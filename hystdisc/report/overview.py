@@ -209,7 +209,7 @@ class OverviewSections:
                 left=0.08,
                 right=0.985,
                 bottom=0.45 / height,
-                top=1 - 0.75 / height,
+                top=1 - 0.55 / height,
                 wspace=0.22,
                 hspace=0.5,
             )
@@ -245,16 +245,8 @@ class OverviewSections:
                 fontsize="small",
                 frameon=False,
             )
-            fig.text(
-                0.08,
-                1 - 0.12 / height,
-                title,
-                va="top",
-                ha="left",
-                fontsize="medium",
-                fontweight="bold" if self.is_selected(key) else "normal",
-            )
-            self.html.append(f"<h3>{esc(title)}</h3>")
+            cls = ' class="selected"' if self.is_selected(key) else ""
+            self.html.append(f"<h3{cls}>{esc(title)}</h3>")
             self.figure(fig)
 
     def fit_order(self) -> list[str]:
