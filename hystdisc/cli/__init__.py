@@ -42,6 +42,10 @@ class OneLineParser(argparse.ArgumentParser):
         print(f"hystdisc: error: {self.prog}: {msg}; fix: see {self.prog} --help", file=sys.stderr)
         sys.exit(2)
 
+    def long_options(self) -> list[str]:
+        """Every ``--option`` this parser knows."""
+        return [o for a in self._actions for o in a.option_strings if o.startswith("--")]
+
 
 def build_parser() -> argparse.ArgumentParser:
     """The top-level parser with every available sub-command."""
@@ -66,7 +70,7 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _unknown_options(parser: argparse.ArgumentParser, extras: list[str]) -> str:
+def _unknown_options(parser: OneLineParser, extras: list[str]) -> str:
     """The message for options no parser knows, with the closest known option if any.
 
     Examples
@@ -78,7 +82,7 @@ def _unknown_options(parser: argparse.ArgumentParser, extras: list[str]) -> str:
     """
     import difflib
 
-    known = [o for a in parser._actions for o in a.option_strings if o.startswith("--")]
+    known = parser.long_options()
     hints = {}
     for extra in extras:
         name = extra.split("=", 1)[0]
