@@ -368,19 +368,21 @@ def test_the_noise_appears_once_in_the_summary(families_report):
 def test_failed_tasks_are_reported_when_present(families_data):
     import dataclasses
 
-    from hystdisc.report import render_report
+    from hystdisc.report.writing import Report
 
-    failed = {"lugre, start 3": "the simulation diverged", "effect coulomb": "singular"}
-    res = dataclasses.replace(families_data.results, extra={"failed": failed})
-    rd = dataclasses.replace(families_data, results=res)
-    html_text, md_text = render_report(rd, max_runs=1, dpi=30)
-    assert 'id="failed"' in html_text and 'href="#failed"' in html_text
-    assert "2 tasks failed (see Failed tasks)" in html_text
-    assert "| lugre, start 3 | the simulation diverged |" in md_text
+    def sections(failed):
+        res = dataclasses.replace(families_data.results, extra={"failed": failed})
+        rep = Report(dataclasses.replace(families_data, results=res), 1, 30)
+        rep.summary()
+        rep.failed()
+        return rep
+
+    rep = sections({"lugre, start 3": "the simulation diverged", "effect coulomb": "singular"})
+    assert rep.present == ["summary", "failed"]  # and so in the navigation bar
+    assert "2 tasks failed (see Failed tasks)" in "".join(rep.html)
+    assert "| lugre, start 3 | the simulation diverged |" in "\n".join(rep.md)
     for empty in ({}, None, "not a table"):
-        res = dataclasses.replace(families_data.results, extra={"failed": empty})
-        html_text, _ = render_report(dataclasses.replace(rd, results=res), max_runs=1, dpi=30)
-        assert 'id="failed"' not in html_text
+        assert sections(empty).present == ["summary"]
 
 
 def test_report_of_results_json_is_the_report_of_the_data(csv_file, tmp_path, capsys, monkeypatch):
