@@ -821,18 +821,12 @@ class Discovery(BaseEstimator):
         Returns
         -------
         Predictions
-            One :class:`~hystdisc.results.predictions.RunPrediction` per run, labelled:
-            ``run``, ``t``, ``current``, ``measured`` and ``predicted`` (the simulated
-            angle, or torque for driven runs); in arithmetic and numpy functions each is
-            the array ``predicted``. ``.table()`` gives the long table.
+            Per run, a labelled ``RunPrediction`` (``run, t, current, measured, predicted``).
         """
         from hystdisc.results.predictions import label_predictions
 
         self._check_fitted()
-        if family is None:
-            fit = self.final_fit_  # the selected family with its accepted effects
-        else:
-            fit = self.family_fits_[family or self.family_]
+        fit = self.final_fit_ if family is None else self.family_fits_[family or self.family_]
         preds = predict_dataset(fit.model, dataset, self.experiment_, self.input_hold)
         return label_predictions(dataset, preds)
 

@@ -31,9 +31,7 @@ def failed_tasks(res) -> dict[str, str]:
     >>> failed_tasks(Results.from_dict({"failed": {"lugre, start 2": "diverged"}}))
     {'lugre, start 2': 'diverged'}
     """
-    failed = getattr(res, "failed", None)
-    if failed is None:
-        failed = (getattr(res, "extra", None) or {}).get("failed")
+    failed = getattr(res, "failed", None) or (getattr(res, "extra", None) or {}).get("failed")
     if not isinstance(failed, dict):
         return {}
     return {str(k): str(v) for k, v in failed.items()}
