@@ -4,11 +4,12 @@ Build it from the repository root (the README's docs command)::
 
     pip install -e ".[docs]" && sphinx-build -W --keep-going -b html doc doc/_build/html
 
-Nothing is executed: the API pages come from the docstrings (autosummary + numpydoc), the
-gallery from the notebooks converted by jupytext without their outputs (myst-nb, execution
-off), the ``results.json`` schema and the warning classes from the code
-(``_ext/hystdisc_docs.py``). The generated sources (``api/generated/``, ``gallery/``) are
-written beside these files and ignored by git.
+The API pages come from the docstrings (autosummary + numpydoc), the gallery from the
+notebooks, executed on small data with their outputs and figures (``_ext/hystdisc_docs.py``
+runs them once per change of a notebook or of the package; myst-nb renders them as they
+are), the ``results.json`` schema and the warning classes from the code. The generated
+sources (``api/generated/``, ``gallery/``) are written beside these files and ignored by
+git. ``-D hystdisc_execute_notebooks=0`` renders the notebooks without running them.
 """
 
 from __future__ import annotations
@@ -61,7 +62,7 @@ numpydoc_class_members_toctree = False
 numpydoc_attributes_as_param_list = True
 numpydoc_xref_param_type = False
 
-# -- notebooks: rendered, never executed -----------------------------------------------------
+# -- notebooks: executed by hystdisc_docs.build_gallery, rendered as they are by myst-nb -------
 nb_execution_mode = "off"
 myst_enable_extensions = ["colon_fence"]
 myst_heading_anchors = 3
@@ -72,5 +73,10 @@ suppress_warnings = ["myst.header"]
 
 html_theme = "alabaster"
 html_title = f"hystdisc {release}"
-html_theme_options = {"description": "MR-damper hysteresis models discovered from data"}
-html_static_path: list[str] = []
+html_theme_options = {
+    "description": "MR-damper hysteresis models discovered from data",
+    "page_width": "1100px",
+}
+html_static_path = ["_static"]
+# long code and output lines wrap instead of being cut at the page's edge
+html_css_files = ["hystdisc.css"]

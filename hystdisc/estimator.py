@@ -812,7 +812,7 @@ class Discovery(BaseEstimator):
         self._check_fitted()
         return self.family_fits_[self.family_]
 
-    def predict(self, dataset: Dataset, family: str | None = None) -> list[np.ndarray]:
+    def predict(self, dataset: Dataset, family: str | None = None) -> list:
         """Simulate the fitted model on the runs of ``dataset``.
 
         Parameters
@@ -824,15 +824,15 @@ class Discovery(BaseEstimator):
 
         Returns
         -------
-        list of ndarray
-            The simulated output of each run (angle, or torque for driven runs).
+        Predictions
+            Per run, a labelled ``RunPrediction`` (``run, t, current, measured, predicted``).
         """
+        from hystdisc.results.predictions import label_predictions
+
         self._check_fitted()
-        if family is None:
-            fit = self.final_fit_  # the selected family with its accepted effects
-        else:
-            fit = self.family_fits_[family or self.family_]
-        return predict_dataset(fit.model, dataset, self.experiment_, self.input_hold)
+        fit = self.final_fit_ if family is None else self.family_fits_[family or self.family_]
+        preds = predict_dataset(fit.model, dataset, self.experiment_, self.input_hold)
+        return label_predictions(dataset, preds)
 
     def score(self, dataset: Dataset) -> float:
         """Coefficient of determination R^2 of the simulated output on ``dataset``.

@@ -93,7 +93,7 @@ true_damper = to_control(truth, "driven", name="damper")
 print(identified)
 (T, U), *_ = driven_inputs(data)
 check = ct.input_output_response(identified, T, U, solve_ivp_kwargs=SOLVE_IVP_KWARGS)
-pred = d.predict(data)[0]
+pred = d.predict(data)[0].predicted  # run 0: also .run, .t, .current, .measured
 print(f"export vs predict on run 0: {np.max(np.abs(check.outputs[0] - pred)):.2e} N*m")
 
 # %% [markdown]

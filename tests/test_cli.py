@@ -157,7 +157,9 @@ def test_the_console_entry_keeps_exit_codes_and_flushes_what_it_wrote(tmp_path):
     assert (version.returncode, version.stdout) == (0, f"hystdisc {hystdisc.__version__}\n")
     usage = _console(["simulate", "--no-such-option"], tmp_path)
     assert usage.returncode == 2
-    assert usage.stderr.startswith("hystdisc: error: hystdisc: unrecognized arguments:")
+    assert usage.stderr.startswith(
+        "hystdisc: error: hystdisc simulate: unrecognized arguments: --no-such-option"
+    )
     missing = _console(["discover", "missing.csv"], tmp_path)
     assert missing.returncode == 2 and "missing.csv" in missing.stderr
     made = _console(["simulate", "--model", "dahl", "--duration", "1", "-o", "d.csv"], tmp_path)
@@ -165,3 +167,69 @@ def test_the_console_entry_keeps_exit_codes_and_flushes_what_it_wrote(tmp_path):
     assert made.stdout.endswith("\n") and "d.csv" in made.stdout
     rows = (tmp_path / "d.csv").read_text().splitlines()
     assert rows[0].split(",")[0] == "run" and len(rows) > 1000
+
+
+#: A complete command line of each command (nothing runs: the option error comes first).
+_VALID = {
+    "discover": ["x.csv"],
+    "predict": ["r.json", "d.csv", "-o", "p.csv"],
+    "simulate": ["--model", "dahl", "-o", "x.csv"],
+    "report": ["x.csv"],
+    "study": ["--model", "dahl", "--vary", "rho=2,3", "-o", "x.png"],
+    "design": ["r.json"],
+}
+
+
+@pytest.mark.parametrize("command", COMMANDS)
+def test_an_unknown_option_points_to_the_subcommands_help(command, capsys):
+    from hystdisc.cli import main
+
+    with pytest.raises(SystemExit) as exit_:
+        main([command, *_VALID[command], "--modle"])
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1
+    assert err.startswith(f"hystdisc: error: hystdisc {command}: unrecognized arguments: --modle")
+    assert err.rstrip().endswith(f"fix: see hystdisc {command} --help")
+    if command in ("discover", "report", "simulate", "study"):  # they have --model
+        assert "(did you mean --model?)" in err
+
+
+def test_an_unknown_option_without_a_command_points_to_the_main_help(capsys):
+    from hystdisc.cli import main
+
+    with pytest.raises(SystemExit):
+        main(["--modle"])
+    err = capsys.readouterr().err
+    assert (
+        err
+        == "hystdisc: error: hystdisc: unrecognized arguments: --modle; fix: see hystdisc --help\n"
+    )
+
+
+@pytest.mark.parametrize("quiet", [False, True])
+def test_a_line_is_printed_before_the_first_compile(monkeypatch, capsys, quiet):
+    # issue 37: a fresh install compiled for about 40 s without a word
+    import numba
+
+    from hystdisc.cli import main
+    from hystdisc.cli import simulate as simulate_cmd
+    from hystdisc.cli.common import COMPILE_NOTE
+
+    def compiles(args):
+        @numba.njit  # not cached: compiled in this process, as a fresh install does
+        def twice(x):
+            return 2 * x
+
+        twice(1)
+        twice(1.5)  # a second compile says nothing more
+        return 0
+
+    monkeypatch.setattr(simulate_cmd, "run", compiles)
+    argv = ["simulate", "--model", "dahl", "-o", "x.csv", *(["--quiet"] if quiet else [])]
+    assert main(argv) == 0
+    err = capsys.readouterr().err
+    assert err == ("" if quiet else COMPILE_NOTE + "\n")
+    # after the command the note is gone: a compile outside it prints nothing
+    numba.njit(lambda x: x + 1)(1)
+    assert capsys.readouterr().err == ""

@@ -287,3 +287,19 @@ def test_report_section(poor, tmp_path):
     labels = [line.split(" | ")[1] for line in section.splitlines() if line.startswith("| 1 ")]
     labels += [line.split(" | ")[1] for line in section.splitlines() if line.startswith("| 2 ")]
     assert labels == [s.label() for s in plan.runs[:2]]
+
+
+def test_a_run_at_the_top_of_the_candidate_range_is_said_to_be(poor):
+    # issue 37: "release from 1 rad" was proposed without saying that the grid stops there
+    _, _, plan = poor
+    cands = [s for s, _ in plan.ranking]
+    top_angle = max(c.amplitude for c in cands)
+    top_current = max(c.current for c in cands)
+    for run in plan.runs:
+        said = [n for n in plan.notes if n.startswith(f"{run.label()}: ")]
+        expect = int(run.amplitude == top_angle) + int(run.current == top_current)
+        assert len(said) == expect, (run.label(), plan.notes)
+        assert all("is the top of the candidate" in n for n in said)
+        for n in said:  # hystdisc design prints them
+            assert f"note: {n}" in plan.report()
+    assert any(r.amplitude == top_angle for r in plan.runs), "the case this test is about"

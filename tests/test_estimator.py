@@ -160,3 +160,23 @@ def test_progress_callback_replaces_verbose(capsys):
 def test_quiet_by_default(capsys):
     Discovery(**FAST, close_loop=False).fit(_data())
     assert capsys.readouterr().err == ""
+
+
+def test_predict_labels_each_run():
+    # issue 37: predict returned bare arrays, without run, time and current
+    d, data = _fitted(), _data()
+    preds = d.predict(data)
+    assert [p.run for p in preds] == [r.name for r in data.runs]
+    for p, r in zip(preds, data.runs, strict=True):
+        assert p.current == r.current and p.signal == "theta"
+        np.testing.assert_array_equal(p.t, r.t)
+        np.testing.assert_array_equal(p.measured, r.theta)
+        assert p.predicted.shape == r.theta.shape
+        assert p.rms == pytest.approx(np.sqrt(np.mean((p.predicted - r.theta) ** 2)))
+        # it still acts as the array of predicted values
+        np.testing.assert_array_equal(p - r.theta, p.predicted - r.theta)
+    table = preds.table()
+    n = sum(r.n for r in data.runs)
+    assert all(len(v) == n for v in table.values())
+    assert list(table) == ["run", "t", "current", "measured", "predicted"]
+    assert d.score(data) > 0.9  # score reads the predictions too

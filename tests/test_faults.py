@@ -377,3 +377,86 @@ def test_jobs_do_not_change_results(tmp_path, capsys):
     capsys.readouterr()
     assert sorted(outs["1"]) == ["rig1.results.json", "rig2.results.json"]
     assert outs["1"] == outs["2"]
+
+
+# ----------------------------------------------------------------------------- issue 37
+
+
+def _without_current(data: Dataset, path: Path) -> Path:
+    """``data`` written as a CSV that has lost its current column."""
+    write_csv(data, path)
+    rows = [line.split(",") for line in path.read_text().splitlines()]
+    drop = rows[0].index("current")
+    path.write_text("\n".join(",".join(r[:drop] + r[drop + 1 :]) for r in rows) + "\n")
+    return path
+
+
+@pytest.mark.parametrize("experiment", ["release", "driven"])
+def test_runs_that_differ_without_a_current_column_are_an_error(base, experiment, tmp_path, capsys):
+    # issue 37: such a file ran 80 s at 0 A and ended "the damper law itself may be wrong"
+    data = (
+        base
+        if experiment == "release"
+        else generate(
+            Model("dahl"), "driven", currents=(0.0, 1.0), duration=2.0, noise=1e-3, seed=2
+        )
+    )
+    path = _without_current(data, tmp_path / "lost.csv")
+    code = main(["discover", str(path), "--out", str(tmp_path / "o")])  # not --quiet
+    err = capsys.readouterr().err
+    assert code == 2
+    assert err.count("\n") == 1, err  # the one line, no progress: nothing was fitted
+    assert err.startswith(f"hystdisc: error: {path}: no 'current' column, so every run is ")
+    assert "start alike and then differ by" in err and "; fix: add a 'current' column" in err
+    assert not (tmp_path / "o").exists()
+
+
+def test_repeated_runs_without_a_current_column_are_read_at_0_A(tmp_path):
+    # the same release at one current, twice (other noise), and another release angle
+    runs = [
+        generate(Model("dahl"), currents=(0.5,), theta0=a, duration=2.0, noise=1e-3, seed=s)[0]
+        for s, a in ((1, 0.3), (2, 0.3), (3, 0.15))
+    ]
+    runs = [Run(str(k), r.t, r.theta, r.current) for k, r in enumerate(runs)]
+    path = _without_current(Dataset(runs, "release", "x"), tmp_path / "one.csv")
+    from hystdisc.data import load
+
+    with pytest.warns(HystdiscWarning, match="no 'current' column: every run is taken at 0 A"):
+        data = load(path)
+    assert [r.current for r in data.runs] == [0.0, 0.0, 0.0]
+    # a driven sine repeated at one current
+    twice = generate(Model("dahl"), "driven", currents=(0.5, 0.5), duration=2.0, seed=4)
+    assert twice[0].torque[5] != twice[1].torque[5]  # other noise
+    path = _without_current(twice, tmp_path / "driven.csv")
+    with pytest.warns(HystdiscWarning, match="no 'current' column"):
+        assert len(load(path).runs) == 2
+
+
+def test_predict_with_a_release_fit_on_a_driven_file_is_an_error(base, tmp_path, capsys):
+    # issue 37: it exited 0 with a meaningless output (the driven file read as releases)
+    disc = Discovery(model="dahl", **{k: v for k, v in FAST.items() if k != "families"})
+    fit = disc.fit(base).results_
+    fit.save(tmp_path / "results.json")
+    driven = generate(Model("dahl"), "driven", currents=(0.0, 1.0), duration=1.0, seed=5)
+    data = write_csv(driven, tmp_path / "driven.csv")
+    out = tmp_path / "pred.csv"
+    msg = cli_error(
+        ["predict", tmp_path / "results.json", data, "-o", out], capsys, "holds driven runs"
+    )
+    assert msg.startswith(f"hystdisc: error: {data}: holds driven runs (a torque column), but ")
+    assert "is a fit of release runs" in msg and "; fix: give runs of a release test" in msg
+    assert not out.exists()
+    # the release file it was fitted on still predicts
+    assert (
+        main(
+            [
+                "predict",
+                str(tmp_path / "results.json"),
+                str(write_csv(base, tmp_path / "r.csv")),
+                "-o",
+                str(out),
+                "--quiet",
+            ]
+        )
+        == 0
+    )

@@ -152,7 +152,12 @@ def test_success_leaves_only_the_output(command, tmp_path, data_csv, results_jso
     code, err = cli(argv, capsys)
     assert code == 0, err
     written = sorted(str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*") if p.is_file())
-    assert written == [str(target.relative_to(tmp_path))]
+    expected = [target]
+    if command in ("discover --json", "discover --out"):  # and what the report draws
+        from hystdisc.report.source import report_data_path
+
+        expected.append(report_data_path(target))
+    assert written == sorted(str(p.relative_to(tmp_path)) for p in expected)
     if target.suffix == ".json":
         json.loads(target.read_text())  # complete
 

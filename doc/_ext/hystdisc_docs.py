@@ -1,8 +1,9 @@
 """Sphinx extension of the hystdisc documentation: pages generated from the code.
 
 - ``builder-inited``: the notebooks (jupytext percent scripts in ``notebooks/``) are
-  converted to ``gallery/*.ipynb`` without outputs (myst-nb renders them, nothing is
-  executed) and ``gallery/index.rst`` lists them with their titles and first paragraphs;
+  executed on small data into ``gallery/*.ipynb`` with their outputs and figures (myst-nb
+  renders them as they are) and ``gallery/index.rst`` lists them with their titles and
+  first paragraphs; the API pages, one per module, go to ``api/generated/``;
 - ``.. hystdisc-results-schema::``: the ``results.json`` schema, one table per typed
   record of :mod:`hystdisc.results`, from the dataclass fields and their numpydoc
   ``Attributes``; a field without its ``Attributes`` entry is a build warning;
@@ -79,7 +80,8 @@ def _summary_names(mod: types.ModuleType, package: bool) -> list[str]:
 
 
 def _first_line(obj) -> str:
-    return (inspect.getdoc(obj) or "").strip().split("\n")[0]
+    """The first paragraph of ``obj``'s docstring, on one line."""
+    return " ".join((inspect.getdoc(obj) or "").strip().split("\n\n")[0].split())
 
 
 def module_page(name: str, subs: list[str] | None) -> str:
@@ -100,6 +102,26 @@ def module_page(name: str, subs: list[str] | None) -> str:
             lines += [f"* :doc:`{sub}` — {summary}"]
         lines += ["", ".. toctree::", "   :hidden:", ""] + [f"   {sub}" for sub in subs]
     return "\n".join(lines) + "\n"
+
+
+class ModuleIndex(SphinxDirective):
+    """``.. hystdisc-modules::``: every module of the package, nested as the packages are,
+    each linked to its API page with the first line of its docstring."""
+
+    def run(self) -> list[nodes.Node]:
+        tree = submodules()
+        lines: list[str] = []
+
+        def entry(name: str, depth: int) -> None:
+            summary = _first_line(importlib.import_module(name))
+            lines.extend(["", f"{'  ' * depth}* :doc:`{name} <{API}/{name}>` — {summary}"])
+            for sub in tree.get(name, []):
+                entry(sub, depth + 1)
+
+        entry("hystdisc", 0)
+        container = nodes.container(classes=["hystdisc-modules"])
+        self.state.nested_parse(StringList(lines, "<modules>"), self.content_offset, container)
+        return container.children
 
 
 def build_api(app: Sphinx) -> None:
@@ -139,8 +161,63 @@ def _write_if_changed(path: Path, text: str) -> None:
         path.write_text(text, encoding="utf-8")
 
 
+#: What the docs build sets in the notebooks' kernels: the small data of the test suite.
+NOTEBOOK_ENV = {"HYSTDISC_NOTEBOOK_FAST": "1"}
+#: Longest a cell may run, s.
+CELL_TIMEOUT = 600
+
+
+def _digest(script: Path) -> str:
+    """What an executed notebook depends on: its script and the package's sources."""
+    import hashlib
+
+    import hystdisc
+
+    h = hashlib.sha256(script.read_bytes())
+    for path in sorted(Path(hystdisc.__file__).parent.rglob("*.py")):
+        h.update(path.read_bytes())
+    h.update(repr(sorted(NOTEBOOK_ENV.items())).encode())
+    return h.hexdigest()[:16]
+
+
+def execute_notebook(nb, workdir: Path, env: dict[str, str]) -> str | None:
+    """Execute ``nb`` in place in a fresh ``python3`` kernel; the failure, if any.
+
+    The kernel talks over IPC sockets in ``workdir``, not TCP ports (a TCP kernel picks
+    free ports, releases them and binds them again, and another process can take one in
+    between: a CI failure at 7e4a116).
+    """
+    import nbclient
+    from traitlets.config import Config
+
+    workdir.mkdir(parents=True, exist_ok=True)
+    client = nbclient.NotebookClient(
+        nb,
+        timeout=CELL_TIMEOUT,
+        kernel_name="python3",
+        resources={"metadata": {"path": str(workdir)}},
+        config=Config({"KernelManager": {"transport": "ipc", "ip": str(workdir / "kernel")}}),
+    )
+    try:
+        client.execute(env=env)
+    except nbclient.exceptions.CellExecutionError as exc:
+        return str(exc).strip().splitlines()[-1] if str(exc).strip() else repr(exc)
+    return None
+
+
 def build_gallery(app: Sphinx) -> None:
-    """Convert the notebooks into ``gallery/`` and write its index page."""
+    """Execute the notebooks (small data) into ``gallery/`` and write its index page.
+
+    Each notebook is executed once per change of its script or of the package (the
+    digest is kept in the notebook's metadata), concurrently in kernels of their own,
+    with :data:`NOTEBOOK_ENV`. A cell that fails is a build warning (an error with
+    ``-W``); the measured-data notebook runs its data cells only when ``HYSTDISC_DATA``
+    is set. ``hystdisc_execute_notebooks = False`` renders them without outputs.
+    """
+    import os
+    import tempfile
+    from concurrent.futures import ThreadPoolExecutor
+
     import jupytext
     import nbformat
 
@@ -150,21 +227,59 @@ def build_gallery(app: Sphinx) -> None:
         logger.warning("no notebooks found in %s", src)
     out = Path(app.srcdir) / GALLERY
     out.mkdir(exist_ok=True)
+    env = {k: v for k, v in os.environ.items() if k != "MPLBACKEND"}  # the inline backend
+    env.update(NOTEBOOK_ENV)
+    if env.get("HYSTDISC_DATA"):  # the kernels run in their own folders
+        env["HYSTDISC_DATA"] = str(Path(env["HYSTDISC_DATA"]).resolve())
+    env["PYTHONPATH"] = os.pathsep.join([str(_package_root()), env.get("PYTHONPATH", "")])
+    todo = []
     rows = []
     for script in scripts:
+        target = out / f"{script.stem}.ipynb"
+        digest = _digest(script)
         nb = jupytext.read(script)
         nb.metadata.pop("jupytext", None)
-        _write_if_changed(out / f"{script.stem}.ipynb", nbformat.writes(nb) + "\n")
         title, summary = _title_and_summary(nb)
         rows.append((script, title, summary))
+        if not app.config.hystdisc_execute_notebooks:
+            _write_if_changed(target, nbformat.writes(nb) + "\n")
+            continue
+        if target.exists():
+            old = nbformat.read(target, as_version=4)
+            if old.metadata.get("hystdisc", {}).get("digest") == digest:
+                continue  # executed already, from the same script and package
+        nb.metadata["hystdisc"] = {"digest": digest}
+        todo.append((script, target, nb))
+    if todo:
+        logger.info("executing %d notebooks for the gallery ...", len(todo))
+        with (
+            tempfile.TemporaryDirectory() as tmp,
+            ThreadPoolExecutor(max_workers=min(4, len(todo))) as pool,
+        ):
+            futures = [
+                (
+                    script,
+                    target,
+                    nb,
+                    pool.submit(execute_notebook, nb, Path(tmp) / script.stem, env),
+                )
+                for script, target, nb in todo
+            ]
+            for script, target, nb, future in futures:
+                failure = future.result()
+                if failure:
+                    logger.warning("notebook %s: a cell failed: %s", script.name, failure)
+                    nb.metadata["hystdisc"] = {"failed": failure}  # run it again next time
+                target.write_text(nbformat.writes(nb) + "\n", encoding="utf-8")
     lines = [
         "Notebook gallery",
         "================",
         "",
-        "Tutorials as notebooks. Each is a jupytext percent script in ``notebooks/``: open",
-        "it in Jupyter as a notebook and run it (the test suite executes them on small",
-        "data). These pages show the code and the text; the figures appear when you run",
-        "them.",
+        "Tutorials as notebooks, shown here executed, with their outputs and figures (on",
+        "the small data the test suite uses: ``HYSTDISC_NOTEBOOK_FAST=1``). Each is a",
+        'jupytext percent script in ``notebooks/``: with ``pip install -e ".[notebooks]"``',
+        "Jupyter opens it as a notebook, and ``jupytext --to ipynb --execute notebooks/*.py``",
+        "executes them all into notebooks with their outputs beside the scripts.",
         "",
     ]
     for script, _title, summary in rows:
@@ -172,6 +287,13 @@ def build_gallery(app: Sphinx) -> None:
     lines += [".. toctree::", "   :hidden:", ""]
     lines += [f"   {script.stem}" for script, _, _ in rows]
     _write_if_changed(out / "index.rst", "\n".join(lines) + "\n")
+
+
+def _package_root() -> Path:
+    """The folder that holds the ``hystdisc`` package the docs are built from."""
+    import hystdisc
+
+    return Path(hystdisc.__file__).resolve().parent.parent
 
 
 # -- results.json schema ------------------------------------------------------------------
@@ -379,6 +501,7 @@ def template_once(app: Sphinx) -> None:
 
 def setup(app: Sphinx) -> dict:
     app.add_config_value("hystdisc_notebooks", "", "env")
+    app.add_config_value("hystdisc_execute_notebooks", True, "env")
     app.connect("builder-inited", build_api)
     app.connect("builder-inited", build_gallery)
     app.connect("builder-inited", template_once)
@@ -386,4 +509,5 @@ def setup(app: Sphinx) -> dict:
     app.connect("autodoc-skip-member", skip_foreign_member)
     app.add_directive("hystdisc-results-schema", ResultsSchema)
     app.add_directive("hystdisc-exceptions", Exceptions)
+    app.add_directive("hystdisc-modules", ModuleIndex)
     return {"version": "1", "parallel_read_safe": True, "parallel_write_safe": True}

@@ -28,6 +28,7 @@ import warnings
 from typing import NoReturn
 
 from hystdisc import __version__
+from hystdisc.cli.common import first_compile_note
 from hystdisc.errors import HystdiscError, HystdiscWarning
 
 COMMANDS = ("discover", "predict", "simulate", "report", "study", "design")
@@ -40,6 +41,10 @@ class OneLineParser(argparse.ArgumentParser):
         msg = " ".join(str(message).split())
         print(f"hystdisc: error: {self.prog}: {msg}; fix: see {self.prog} --help", file=sys.stderr)
         sys.exit(2)
+
+    def long_options(self) -> list[str]:
+        """Every ``--option`` this parser knows."""
+        return [o for a in self._actions for o in a.option_strings if o.startswith("--")]
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -61,15 +66,45 @@ def build_parser() -> argparse.ArgumentParser:
             name, help=mod.HELP, description=mod.DESCRIPTION, epilog=getattr(mod, "EPILOG", None)
         )
         mod.add_arguments(p)
-        p.set_defaults(run_command=mod.run)
+        p.set_defaults(run_command=mod.run, command_parser=p)
     return parser
+
+
+def _unknown_options(parser: OneLineParser, extras: list[str]) -> str:
+    """The message for options no parser knows, with the closest known option if any.
+
+    Examples
+    --------
+    >>> p = OneLineParser(prog="hystdisc discover")
+    >>> _ = p.add_argument("--model")
+    >>> _unknown_options(p, ["--modle"])
+    'unrecognized arguments: --modle (did you mean --model?)'
+    """
+    import difflib
+
+    known = parser.long_options()
+    hints = {}
+    for extra in extras:
+        name = extra.split("=", 1)[0]
+        close = difflib.get_close_matches(name, known, n=1, cutoff=0.75)
+        if name.startswith("--") and close:
+            hints[name] = close[0]
+    text = f"unrecognized arguments: {' '.join(extras)}"
+    if len(hints) == 1:
+        return f"{text} (did you mean {next(iter(hints.values()))}?)"
+    if hints:
+        return f"{text} ({'; '.join(f'{k}: did you mean {v}?' for k, v in hints.items())})"
+    return text
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line ``argv`` (default ``sys.argv[1:]``) and return its exit status
     (the console script is :func:`console`)."""
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args, extras = parser.parse_known_args(argv)
+    if extras:  # the subcommand's own parser names itself and its --help in the message
+        owner = getattr(args, "command_parser", None) or parser
+        owner.error(_unknown_options(owner, extras))
     if not getattr(args, "command", None):
         parser.print_help(sys.stderr)
         return 2
@@ -88,7 +123,8 @@ def main(argv: list[str] | None = None) -> int:
 
     warnings.showwarning = _warn
     try:
-        return int(args.run_command(args) or 0)
+        with first_compile_note(getattr(args, "quiet", False)):
+            return int(args.run_command(args) or 0)
     except HystdiscError as exc:
         print(f"hystdisc: error: {exc}", file=sys.stderr)
         return 2

@@ -11,9 +11,10 @@ them, so a change of the estimator's signature is adapted here, once.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from typing import TYPE_CHECKING, Any
 
 from hystdisc import registry
@@ -90,6 +91,51 @@ def progress_printer(quiet: bool) -> Callable[[str], None] | None:
         print(f"[{time.perf_counter() - t0:6.1f} s] {msg}", file=sys.stderr, flush=True)
 
     return say
+
+
+#: What the first compile of a process prints on stderr (once, before it starts).
+COMPILE_NOTE = (
+    "hystdisc: compiling the simulator (numba, first run only: about a minute; "
+    "cached for the runs after it) ..."
+)
+
+
+@contextlib.contextmanager
+def first_compile_note(quiet: bool = False) -> Iterator[None]:
+    """Within the block, print :data:`COMPILE_NOTE` once before numba's first compile.
+
+    A fresh install compiles the simulator's kernels on its first run (about a minute on
+    2 cores) and caches them; without a word the command seems to hang. Loading a kernel
+    from the cache is no compile: a warm install prints nothing. numba is imported only
+    when the block is entered (not by ``--help``).
+
+    Parameters
+    ----------
+    quiet : bool
+        Print nothing.
+
+    Yields
+    ------
+    None
+    """
+    if quiet:
+        yield
+        return
+    from numba.core import event
+
+    class _Note(event.Listener):
+        said = False
+
+        def on_start(self, ev) -> None:
+            if not self.said:
+                self.said = True
+                print(COMPILE_NOTE, file=sys.stderr, flush=True)
+
+        def on_end(self, ev) -> None:
+            pass
+
+    with event.install_listener("numba:compile", _Note()):
+        yield
 
 
 def add_discovery_options(p: argparse.ArgumentParser) -> None:

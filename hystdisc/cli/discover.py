@@ -87,10 +87,13 @@ def run(args: argparse.Namespace) -> int:
             f"dataset; fix: add --each (one dataset per FILE) or drop {flag}"
         )
     json_path = Path(args.json) if args.json else Path(args.out) / "results.json"
-    if json_path.exists() and not args.force:
-        raise HystdiscError(
-            f"{json_path}: exists; fix: pass --force to overwrite or choose another --json/--out"
-        )
+    from hystdisc.report.source import report_data_path
+
+    for path in (json_path, report_data_path(json_path)):
+        if path.exists() and not args.force:
+            raise HystdiscError(
+                f"{path}: exists; fix: pass --force to overwrite or choose another --json/--out"
+            )
     if args.report:
         from hystdisc.report import check_report_path
 
@@ -99,7 +102,11 @@ def run(args: argparse.Namespace) -> int:
     disc = discover(args, data, progress_printer(args.quiet))
     res = disc.results_
     json_path.parent.mkdir(parents=True, exist_ok=True)
+    from hystdisc.report import report_data, report_data_path
+
+    rd = report_data(disc, data)  # what hystdisc report results.json draws, kept beside it
     res.save(json_path, force=args.force)
+    rd.save(report_data_path(json_path), force=args.force)
     print(res.report())
     if getattr(disc, "staged_", None) is not None:
         print("\n" + disc.staged_.report())
@@ -108,7 +115,7 @@ def run(args: argparse.Namespace) -> int:
         from hystdisc.report import write_report
 
         path = write_report(
-            disc, data, args.report, force=args.force, progress=progress_printer(args.quiet)
+            rd, None, args.report, force=args.force, progress=progress_printer(args.quiet)
         )
         print(f"wrote {path}")
     return 0

@@ -32,6 +32,34 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--quiet", action="store_true", help="print nothing but errors")
 
 
+def _load_for(res, args: argparse.Namespace):
+    """The data, read as the experiment the fit is of; a one-line error when they hold
+    another kind of test (a release fit cannot say anything about a driven record)."""
+    if args.experiment is not None:
+        return load_data(args, args.data)
+    try:  # what the files hold, from their columns
+        data = load_data(args, args.data)
+    except HystdiscError as exc:
+        if "ambiguous" not in str(exc):  # both a torque and an input column
+            raise
+        args.experiment = res.experiment
+        return load_data(args, args.data)
+    if res.experiment and data.experiment != res.experiment:
+        from hystdisc.registry import get_experiment
+
+        held = get_experiment(data.experiment)
+        what = {"driven": "a torque column", "forced": "an input column"}.get(
+            data.experiment, "no torque or input column"
+        )
+        raise HystdiscError(
+            f"{data.source}: holds {held.name} runs ({what}), but {args.results} is a fit of "
+            f"{res.experiment} runs, which cannot predict them; fix: give runs of a "
+            f"{res.experiment} test, or fit {held.name} runs first (hystdisc discover "
+            f"{' '.join(args.data)}) and predict with that results.json"
+        )
+    return data
+
+
 def run(args: argparse.Namespace) -> int:
     """Execute ``hystdisc predict``."""
     import numpy as np
@@ -48,9 +76,7 @@ def run(args: argparse.Namespace) -> int:
             f"{', '.join(res.families)}"
         )
     tm = res.simulation_model(args.family)
-    if args.experiment is None:
-        args.experiment = res.experiment
-    data = load_data(args, args.data)
+    data = _load_for(res, args)
     hold = res.input_hold or "cubic"
     if hold not in HOLDS:
         raise HystdiscError(

@@ -1,10 +1,13 @@
-"""``hystdisc report``: discover the model of the data and write the model-comparison report.
+"""``hystdisc report``: write the model-comparison report of a fit, or of the data.
 
 One self-contained HTML file (figures embedded, opens offline) and a Markdown summary of
-its tables beside it (``report.html`` -> ``report.md``).
+its tables beside it (``report.html`` -> ``report.md``). Given the ``results.json`` of
+``hystdisc discover`` it refits nothing: the signals it draws are kept beside it
+(``results.report.npz``), and the report is the same as that of the data.
 
 Examples::
 
+    hystdisc report out/results.json -o out/report.html
     hystdisc report data_synth/bouc-wen.csv -o report.html
     hystdisc report run.csv --model dahl -o dahl.html --force --quiet
     hystdisc report run.csv --model bouc-wen --design 3 -o report.html
@@ -24,9 +27,11 @@ from hystdisc.cli.common import (
 )
 from hystdisc.errors import HystdiscError
 
-HELP = "discover the model and write an HTML model-comparison report (+ Markdown summary)"
+HELP = "write the HTML model-comparison report of a results.json or of data (+ Markdown)"
 DESCRIPTION = (
-    "Run the discovery (as hystdisc discover) and write one self-contained HTML "
+    "Given the results.json of hystdisc discover, draw its report without a refit (the "
+    "signals are kept beside it, results.report.npz); given data, run the discovery (as "
+    "hystdisc discover) first. Either way one self-contained HTML "
     "report: data, measured against simulated output, hysteresis loops per current, "
     "the family table, parameters with 95 % intervals, the seed's term "
     "correspondence, the term-selection path and the closing loop (with --design N, "
@@ -38,7 +43,11 @@ DESCRIPTION = (
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """The options of ``hystdisc report``."""
     p.add_argument(
-        "files", nargs="+", metavar="FILE", help="data files or folders (CSV, .mat, tables)"
+        "files",
+        nargs="+",
+        metavar="FILE",
+        help="a results.json of hystdisc discover (no refit), or data files or folders "
+        "(CSV, .mat, tables)",
     )
     p.add_argument(
         "-o",
@@ -77,9 +86,17 @@ def run(args: argparse.Namespace) -> int:
         raise HystdiscError(f"--max-runs {args.max_runs} is below 1; fix: give 1 or more")
     if args.design is not None and args.design < 1:
         raise HystdiscError(f"--design {args.design} is below 1; fix: give 1 or more")
-    data = load_data(args, args.files)
     say = progress_printer(args.quiet)
-    disc = discover(args, data, say)
+    if _is_results(args.files):
+        from hystdisc.report import load_report_data
+
+        _check_no_fit_options(args)
+        rd = load_report_data(args.files[0])
+    else:
+        from hystdisc.report import report_data
+
+        data = load_data(args, args.files)
+        rd = report_data(discover(args, data, say), data)
     plan = None
     if args.design is not None:
         from hystdisc.design import design
@@ -87,12 +104,12 @@ def run(args: argparse.Namespace) -> int:
         if say is not None:
             say("report: experiment design")
         try:
-            plan = design(disc.results_, budget=args.design)
+            plan = design(rd.results, budget=args.design)
         except HystdiscError as exc:  # a forced test, a model diverging on a candidate
             plan = str(exc).removeprefix("results: ")
     path = write_report(
-        disc,
-        data,
+        rd,
+        None,
         out,
         force=args.force,
         markdown=markdown,
@@ -102,5 +119,43 @@ def run(args: argparse.Namespace) -> int:
     )
     if not args.quiet:
         extra = f" and {markdown_path(path)}" if markdown else ""
-        print(f"wrote {path}{extra} (family: {disc.family_})")
+        print(f"wrote {path}{extra} (family: {rd.results.family})")
     return 0
+
+
+def _is_results(files: list[str]) -> bool:
+    """One ``.json`` file: the results of a discovery, not data."""
+    return len(files) == 1 and Path(files[0]).suffix.lower() == ".json"
+
+
+#: Options of the fit, which a report of a results.json cannot apply (dest -> flag).
+FIT_OPTIONS = {
+    "model": "--model",
+    "families": "--families",
+    "experiment": "--experiment",
+    "rig": "--rig",
+    "column": "--column",
+    "units": "--units",
+    "ensemble": "--ensemble",
+    "no_heldout": "--no-heldout",
+    "single_current": "--single-current",
+    "no_effects": "--no-effects",
+    "staged": "--staged",
+}
+
+
+def _check_no_fit_options(args: argparse.Namespace) -> None:
+    """A report of a results.json draws that fit: options of another fit are an error."""
+    given = [flag for dest, flag in FIT_OPTIONS.items() if getattr(args, dest, None)]
+    if args.seed != 0:
+        given.append("--seed")
+    if args.starts != 4:
+        given.append("--starts")
+    if args.input_hold != "cubic":
+        given.append("--input-hold")
+    if given:
+        raise HystdiscError(
+            f"{args.files[0]}: is the results of a fit, which the report draws as it is, so "
+            f"{', '.join(given)} cannot apply; fix: drop {', '.join(given)}, or give the data "
+            "(hystdisc report DATA ...) to fit again with them"
+        )

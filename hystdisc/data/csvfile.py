@@ -22,7 +22,7 @@ from hystdisc.data.dataset import (
 )
 from hystdisc.data.text import data_lines, guess_delimiter, parse_floats, read_text, split_rows
 from hystdisc.data.units import apply_units
-from hystdisc.data.validation import validate
+from hystdisc.data.validation import check_one_current, validate
 from hystdisc.errors import HystdiscWarning, input_error
 
 __all__ = ["read_csv"]
@@ -88,15 +88,7 @@ def read_csv(
         else infer_experiment(present, source)
     )
     _check_needed(where, header, exp, source)
-    current = None
-    if where["current"] is None:  # a rig without a coil: one current, 0 A
-        current = 0.0
-        warnings.warn(
-            f"{source}: no 'current' column: every run is taken at 0 A (a rig without a "
-            f"coil); fix: add a 'current' column, or map yours with {COLUMN_FLAG} current=NAME",
-            HystdiscWarning,
-            stacklevel=2,
-        )
+    current = None if where["current"] is not None else 0.0  # a rig without a coil: 0 A
     linenos, rows = split_rows(lines[1:], delimiter, source, len(header), "as many as the header")
     wanted = [c for c in needed_columns(exp) + ["theta_dot"] if where[c] is not None]
     cols: dict[str, np.ndarray] = {}
@@ -108,6 +100,14 @@ def read_csv(
     apply_units(cols, units, source)
     ds = build_dataset(cols, run_ids, linenos, source, exp, current=current)
     validate(ds, need_currents=1)
+    if current is not None:  # runs that differ as currents do are an error, not 0 A
+        check_one_current(ds, source)
+        warnings.warn(
+            f"{source}: no 'current' column: every run is taken at 0 A (a rig without a "
+            f"coil); fix: add a 'current' column, or map yours with {COLUMN_FLAG} current=NAME",
+            HystdiscWarning,
+            stacklevel=2,
+        )
     return ds
 
 

@@ -24,7 +24,7 @@ from hystdisc.data.preprocessing import estimate_noise
 from hystdisc.data.text import check_finite
 from hystdisc.errors import HystdiscWarning, input_error
 
-__all__ = ["LOCKED_RATIO", "MIN_SAMPLES", "validate"]
+__all__ = ["LOCKED_RATIO", "MIN_SAMPLES", "check_one_current", "validate"]
 
 MIN_SAMPLES = 20
 """Shortest run :func:`validate` accepts."""
@@ -104,6 +104,105 @@ def _validate(dataset: Dataset, need_currents: int) -> Dataset:
     _check_currents(dataset, need_currents)
     _check_units(dataset)
     return dataset
+
+
+#: Runs that start alike (release angle, sine amplitude and frequency) within this
+#: relative tolerance must repeat when they share a current.
+SAME_START = 0.02
+#: Two such runs "clearly differ" when the RMS of their difference exceeds this many
+#: times their combined noise and :data:`DIFFER_FRACTION` of the signal's RMS.
+DIFFER_NOISE = 10.0
+DIFFER_FRACTION = 0.1
+
+
+def check_one_current(dataset: Dataset, source: str | None = None) -> None:
+    """Refuse runs taken at one current (no current column) that clearly differ.
+
+    A file without a current column is read as a rig without a coil: every run at 0 A.
+    Runs that start alike (the same release angle, the same imposed sine, the same input
+    record, within :data:`SAME_START`) must then repeat each other up to the noise; when
+    two of them differ by more than :data:`DIFFER_NOISE` times their noise and
+    :data:`DIFFER_FRACTION` of the signal (of a driven test's torque, the part that is not
+    elastic), they were not taken at one current (an MR
+    damper's runs at several currents, the current column lost), and fitting them at 0 A
+    would run for minutes and give a wrong answer.
+
+    Parameters
+    ----------
+    dataset : Dataset
+        Runs read without a current column.
+    source : str, optional
+        The file named in the message (default ``dataset.source``).
+
+    Raises
+    ------
+    HystdiscError
+        ``FILE: no 'current' column, but runs A and B start alike and differ ...; fix: ...``
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = np.arange(2000) * 1e-3
+    >>> runs = [Run(str(k), t, 0.3 * np.exp(-c * t) * np.cos(20 * t), 0.0)
+    ...         for k, c in enumerate((0.5, 0.5, 3.0))]
+    >>> check_one_current(Dataset(runs[:2], "release", "same.csv"))
+    >>> check_one_current(Dataset(runs, "release", "lost.csv"))
+    Traceback (most recent call last):
+    ...
+    hystdisc.errors.HystdiscError: lost.csv: no 'current' column, so every run is taken at 0 A, but runs 0 and 2 start alike and then differ by ...
+    """
+    from hystdisc.data.conditions import _close, _driven_signature
+
+    exp = registry.get_experiment(dataset.experiment)
+    runs = dataset.runs
+    y = [np.asarray(getattr(r, exp.output), dtype=float) for r in runs]
+    worst = None
+    for a in range(len(runs)):
+        for b in range(a + 1, len(runs)):
+            ra, rb = runs[a], runs[b]
+            n = min(ra.n, rb.n)
+            if n < _MOTION_MIN or not _close(ra.t[1] - ra.t[0], rb.t[1] - rb.t[0], 1e-6):
+                continue
+            if exp.motion_imposed:
+                sa, sb = _driven_signature(ra.t, ra.theta), _driven_signature(rb.t, rb.theta)
+                alike = all(_close(p, q, SAME_START) for p, q in zip(sa, sb, strict=True))
+            elif exp.has_input:
+                ua, ub = np.asarray(ra.input[:n]), np.asarray(rb.input[:n])
+                alike = bool(np.sqrt(np.mean((ua - ub) ** 2)) <= SAME_START * np.std(ua))
+            else:
+                alike = _close(float(ra.theta[0]), float(rb.theta[0]), SAME_START)
+            if not alike:
+                continue
+            d = float(np.sqrt(np.mean((y[a][:n] - y[b][:n]) ** 2)))
+            noise = math.hypot(estimate_noise(y[a][:n]), estimate_noise(y[b][:n]))
+            scale = math.hypot(_varying(ra, y[a][:n], exp), _varying(rb, y[b][:n], exp))
+            scale /= math.sqrt(2)
+            if d > DIFFER_NOISE * noise and d > DIFFER_FRACTION * scale:
+                if worst is None or d / scale > worst[0]:
+                    worst = (d / scale, ra.name, rb.name, d, noise)
+    if worst is None:
+        return
+    rel, na, nb, d, noise = worst
+    times = f", {d / noise:.0f}x their noise" if noise > 0 else ""
+    raise input_error(
+        source or dataset.source,
+        f"no 'current' column, so every run is taken at 0 A, but runs {na} and {nb} start "
+        f"alike and then differ by {d:.3g} RMS in {exp.output} ({100 * rel:.0f} % of the "
+        f"signal{times}), as runs at different coil currents do",
+        "add a 'current' column with each run's coil current in A (or map yours with "
+        f"{COLUMN_FLAG} current=NAME); if the runs truly share one current, give it as a "
+        "column of that value",
+    )
+
+
+def _varying(run: Run, y: np.ndarray, exp: Any) -> float:
+    """RMS of the part of ``y`` a current can change: all of a released angle, the torque
+    less its elastic part (the best ``a + b theta``) when the motion is imposed."""
+    if not exp.motion_imposed:
+        return float(np.sqrt(np.mean(y**2)))
+    A = np.column_stack([np.ones(y.size), run.theta[: y.size]])
+    coef, *_ = np.linalg.lstsq(A, y, rcond=None)
+    return float(np.sqrt(np.mean((y - A @ coef) ** 2)))
 
 
 def _check_units(dataset: Dataset) -> None:

@@ -340,6 +340,7 @@ def design(
         )
     cands, Fc = [cands[c] for c in ok], Fc[ok]
     picks, steps = greedy(info.F0, Fc, info.widest, int(budget))
+    notes += edge_notes([cands[c] for c in picks], cands)
     F = info.F0 + Fc[picks].sum(axis=0)
     after = dict(zip(info.names, map(float, info.widths(F)), strict=True))
     alone = sorted((info.widest(info.F0 + Fc[c]), c) for c in range(len(cands)))
@@ -373,3 +374,63 @@ def design(
         separation=sep,
         notes=notes,
     )
+
+
+#: What each candidate dimension is called in :func:`edge_notes`, by kind of run.
+_DIMENSIONS = (
+    (
+        "amplitude",
+        {"release": ("release angle", "rad"), "sine": ("amplitude", ""), "multisine": ("peak", "")},
+    ),
+    ("frequency", {"sine": ("frequency", "Hz")}),
+    (
+        "current",
+        {"release": ("current", "A"), "sine": ("current", "A"), "multisine": ("current", "A")},
+    ),
+)
+
+
+def edge_notes(picks: list[RunSpec], candidates: list[RunSpec]) -> list[str]:
+    """Notes on suggested runs that sit at the top of their candidate range.
+
+    A run chosen at the largest angle, amplitude, frequency or current the candidates
+    offer may be chosen only because the grid stops there: the information could keep
+    growing beyond it (if the rig allows it), and it is further from what the model was
+    identified on.
+
+    Parameters
+    ----------
+    picks : list of RunSpec
+        The suggested runs.
+    candidates : list of RunSpec
+        The runs they were chosen from.
+
+    Returns
+    -------
+    list of str
+        One note per suggested run and dimension at the top of its range.
+
+    Examples
+    --------
+    >>> cands = [RunSpec("release", i, a) for i in (0.0, 1.0) for a in (0.15, 0.3, 1.0)]
+    >>> edge_notes([RunSpec("release", 0.0, 1.0)], cands)
+    ['release from 1 rad at 0 A: 1 rad is the top of the candidate release angles (0.15 to 1 rad): the grid stops there, and a larger release angle, if the rig allows it, may inform more']
+    """
+    notes = []
+    for run in picks:
+        same = [c for c in candidates if c.kind == run.kind]
+        for attr, names in _DIMENSIONS:
+            if run.kind not in names:
+                continue
+            values = sorted({round(float(getattr(c, attr)), 12) for c in same})
+            v = round(float(getattr(run, attr)), 12)
+            if len(values) < 2 or v < values[-1]:
+                continue
+            name, unit = names[run.kind]
+            u = f" {unit}" if unit else ""
+            notes.append(
+                f"{run.label()}: {v:.3g}{u} is the top of the candidate {name}s "
+                f"({values[0]:.3g} to {values[-1]:.3g}{u}): the grid stops there, and a "
+                f"larger {name}, if the rig allows it, may inform more"
+            )
+    return notes

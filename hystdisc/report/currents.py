@@ -9,16 +9,12 @@ class CurrentSections:
     """The ``current-laws`` section (a mixin of the report's :class:`Document`)."""
 
     def current_laws(self) -> None:
-        """The current-laws section: the staged fit's per-level values and chosen laws."""
-        self.h2("current-laws")
+        """The current-laws section: the staged fit's per-level values and chosen laws
+        (left out when the staged fit did not run)."""
         cl = self.res.current_laws
         if not cl:
-            self.p(
-                "The staged fit did not run (hystdisc discover --staged, with runs at 3 "
-                "current levels or more, fits the family level by level and chooses each "
-                "current law by held-out error)."
-            )
             return
+        self.h2("current-laws")
         levels = cl["levels"]
         self.p(
             f"{cl['family']} fitted at each current level on its own, 0 A first and each "

@@ -1,8 +1,8 @@
 """The report's "What to test next" section: the runs :func:`hystdisc.design.design`
 suggests and the 95 % intervals expected after them.
 
-The section is filled when the report is given a design (``hystdisc report --design N``,
-or ``write_report(..., design=...)``); otherwise it says how to get one.
+The section is written when the report is given a design (``hystdisc report --design N``,
+or ``write_report(..., design=...)``), and left out otherwise.
 """
 
 from __future__ import annotations
@@ -20,15 +20,12 @@ class DesignSections:
     design: DesignResult | str | None = None
 
     def what_to_test_next(self) -> None:
-        """The "What to test next" section: the suggested runs and the expected widths."""
-        self.h2("what-to-test-next")
+        """The "What to test next" section: the suggested runs and the expected widths
+        (left out when no design was asked for)."""
         plan = self.design
         if plan is None:
-            self.p(
-                "Not computed: hystdisc design results.json (or hystdisc report --design N) "
-                "ranks candidate runs by how much they would shrink the widest 95 % interval."
-            )
             return
+        self.h2("what-to-test-next")
         if isinstance(plan, str):
             self.p(f"Not computed: {plan}")
             return

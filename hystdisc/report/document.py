@@ -3,7 +3,10 @@ the sections share."""
 
 from __future__ import annotations
 
-from hystdisc.data import Dataset
+from types import SimpleNamespace
+
+import numpy as np
+
 from hystdisc.registry import get_experiment
 from hystdisc.report.markup import (
     SECTIONS,
@@ -13,8 +16,36 @@ from hystdisc.report.markup import (
     md_table,
     png,
 )
-from hystdisc.report.signals import fit_data, shown_runs
+from hystdisc.report.signals import shown_runs
 from hystdisc.results import Results
+
+
+class _Runs:
+    """The runs as fitted, from the report data (the attributes of ``FitData`` read)."""
+
+    def __init__(self, rd) -> None:
+        r = rd.runs
+        self.names = list(r["names"])
+        self.currents = np.asarray(r["currents"], dtype=float)
+        self.t, self.y, self.mask = list(r["t"]), list(r["y"]), list(r["mask"])
+        self.n_runs = len(self.names)
+        self.experiment = rd.experiment
+
+
+class _Raw:
+    """The runs as read (decimated), for :func:`hystdisc.plotting.plot_runs`."""
+
+    def __init__(self, rd) -> None:
+        self.source, self.experiment, self._measured = rd.source, rd.experiment, rd.measured
+        self.runs = [
+            SimpleNamespace(
+                name=r["name"], current=r["current"], n=r["n"], t=r["t"], **{rd.measured: r["y"]}
+            )
+            for r in rd.raw
+        ]
+
+    def measured(self) -> str:
+        return self._measured
 
 
 class Document:
@@ -22,36 +53,39 @@ class Document:
 
     Attributes
     ----------
-    disc : Discovery
-        The fitted discovery (its public fitted attributes are read).
-    ds : Dataset
-        The dataset it was fitted on.
+    rd : ReportData
+        What the report draws (:mod:`hystdisc.report.source`).
     res : Results
-        ``disc.results_``.
-    fd : FitData
-        ``disc.fit_data_``, the runs as fitted.
+        ``rd.results``.
+    fd : object
+        The runs as fitted: ``names, currents, t, y, mask, n_runs, experiment``.
+    ds : object
+        The runs as read: ``source, experiment, runs`` and ``measured()``.
     exp : Experiment
         The experiment object of the fit.
     max_runs, dpi : int
         Runs drawn per figure; resolution of the figures.
     html, md : list of str
         The HTML and Markdown written so far.
+    present : list of str
+        The ids of the sections written so far.
     shown : list of int
         The runs drawn (one per current first).
     units : str
         ``"torque"`` or ``"theta"``: the measured signal.
     """
 
-    def __init__(self, disc, dataset: Dataset, max_runs: int, dpi: int) -> None:
-        self.disc = disc
-        self.ds = dataset
-        self.res: Results = disc.results_
-        self.fd = fit_data(disc)
+    def __init__(self, rd, max_runs: int, dpi: int) -> None:
+        self.rd = rd
+        self.res: Results = rd.results
+        self.fd = _Runs(rd)
+        self.ds = _Raw(rd)
         self.exp = get_experiment(self.fd.experiment)
         self.max_runs = max_runs
         self.dpi = dpi
         self.html: list[str] = []
         self.md: list[str] = []
+        self.present: list[str] = []  # the sections written (empty ones are left out)
         self.shown = shown_runs(list(self.fd.currents), max_runs)
         self.units = self.exp.output
 
@@ -64,6 +98,7 @@ class Document:
     def h2(self, sid: str) -> None:
         """Open the section ``sid`` (a key of ``SECTIONS``) with its heading."""
         title = dict(SECTIONS)[sid]
+        self.present.append(sid)
         self.html.append(f'<h2 id="{esc(sid)}">{esc(title)}</h2>')
         self.md += ["", f"## {title}", ""]
 

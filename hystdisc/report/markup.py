@@ -14,6 +14,7 @@ from typing import Any
 #: (id, title) of every section, in order; each is an ``<h2 id=...>`` of the HTML.
 SECTIONS: tuple[tuple[str, str], ...] = (
     ("summary", "Summary"),
+    ("failed", "Failed tasks"),
     ("data", "Data"),
     ("time-series", "Measured and simulated output"),
     ("loops", "Hysteresis loops"),
@@ -44,15 +45,17 @@ body{font-family:system-ui,-apple-system,"Segoe UI",Helvetica,Arial,sans-serif;m
 max-width:1150px;padding:1em 2em;color:#222;line-height:1.45}
 h1{font-size:1.6em;border-bottom:2px solid #444;padding-bottom:.2em}
 h2{font-size:1.3em;border-bottom:1px solid #bbb;margin-top:2em;padding-bottom:.15em}
-h3{font-size:1.05em;margin-top:1.3em}
-table{border-collapse:collapse;margin:.6em 0;font-size:.9em}
+h3{font-size:1.05em;margin-top:1.3em}h3.selected{background:#fff6d8;padding:.15em .4em}
+table{border-collapse:collapse;margin:.6em 0;font-size:.9em;display:block;max-width:100%;
+overflow-x:auto}
 th,td{border:1px solid #ccc;padding:.25em .6em;text-align:right;vertical-align:top}
 th{background:#f0f0f0}td.l,th.l{text-align:left}
 tr.sel td{background:#fff6d8;font-weight:600}
 pre{background:#f6f6f6;padding:.6em;overflow-x:auto;font-size:.88em}
 img{max-width:100%;height:auto;display:block;margin:.6em 0}
 .note{color:#555;font-size:.9em}.bad{color:#a00}.good{color:#070}
-nav a{margin-right:1em}code{font-size:.92em}
+nav{display:flex;flex-wrap:wrap;gap:.2em 1em}code{font-size:.92em}
+@media (max-width:800px){body{padding:.5em 1em}}
 """
 
 
@@ -119,11 +122,23 @@ def md_table(header: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
     return "\n".join(lines)
 
 
-def new_figure(nrows: int, ncols: int, width: float, height: float, **kw: Any):
-    """A figure (not registered with pyplot) and its ``nrows`` x ``ncols`` axes."""
+def new_figure(
+    nrows: int,
+    ncols: int,
+    width: float,
+    height: float,
+    layout: str | None = "constrained",
+    **kw: Any,
+):
+    """A figure (not registered with pyplot) and its ``nrows`` x ``ncols`` axes.
+
+    ``layout=None`` leaves the placement to the caller (``fig.subplots_adjust``): the
+    constrained layout measures every tick label of every panel, half the drawing time of
+    a figure of many panels.
+    """
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(width, height), layout="constrained")
+    fig = Figure(figsize=(width, height), layout=layout)
     axes = fig.subplots(nrows, ncols, squeeze=False, **kw)
     return fig, axes
 
@@ -146,11 +161,12 @@ def thin(n: int) -> slice:
 
 
 def figure_legend(fig, ax) -> None:
-    """One legend for the whole figure, outside the axes on the right."""
+    """One legend for the whole figure, above all its panels, in as many columns as fit."""
     handles, labels = ax.get_legend_handles_labels()
     if labels:
-        labels = [textwrap.fill(lab, 34) for lab in labels]  # long discovered structures
-        fig.legend(handles, labels, loc="outside right upper", fontsize="small")
+        labels = [textwrap.fill(lab, 40) for lab in labels]  # long discovered structures
+        ncols = max(1, min(len(labels), 4))
+        fig.legend(handles, labels, loc="outside upper center", fontsize="small", ncols=ncols)
 
 
 def md_line(text: str) -> str:

@@ -5,34 +5,58 @@ from __future__ import annotations
 import numpy as np
 
 from hystdisc import __version__
-from hystdisc.data import Dataset
 from hystdisc.report.markup import (
     FAMILY_COLORS,
     currents_text,
+    esc,
     figure_legend,
     new_figure,
     num,
     thin,
 )
-from hystdisc.report.signals import final_fit, fit_label, fit_signals, fits_of, model_loops
 from hystdisc.report.stages import residual_sentence
 
 
+def failed_tasks(res) -> dict[str, str]:
+    """The tasks of a fit that failed (``failed`` in ``results.json``): name -> reason.
+
+    Read defensively: a record without the key, or with something else than a table
+    under it, has none.
+
+    Examples
+    --------
+    >>> from hystdisc.results import Results
+    >>> failed_tasks(Results())
+    {}
+    >>> failed_tasks(Results.from_dict({"failed": {"lugre, start 2": "diverged"}}))
+    {'lugre, start 2': 'diverged'}
+    """
+    failed = getattr(res, "failed", None) or (getattr(res, "extra", None) or {}).get("failed")
+    if not isinstance(failed, dict):
+        return {}
+    return {str(k): str(v) for k, v in failed.items()}
+
+
 class OverviewSections:
-    """The sections ``summary``, ``data``, ``time-series`` and ``loops`` (a mixin of
+    """The sections ``summary``, ``failed``, ``data``, ``time-series`` and ``loops`` (a mixin of
     :class:`~hystdisc.report.document.Document`)."""
 
     def summary(self) -> None:
         """The summary section: the selected family, its fit and the verdict."""
-        d, disc = self.res, self.disc
+        d = self.res
         self.h2("summary")
         sel = "declared" if d.declared else "selected"
+        measurement = [
+            [k.lower(), v] for k, _, v in (x.partition(": ") for x in d.measurement_lines())
+        ]
+        # the noise once: the line that says how it was estimated, else the number
+        if not any("noise" in k for k, _ in measurement):
+            measurement.insert(0, ["noise (estimated)", num(d.noise_std, ".3g")])
         rows = [
             ["input", d.input],
             ["experiment", d.experiment or ""],
             ["runs", f"{self.fd.n_runs} (currents {currents_text(self.fd.currents)} A)"],
-            ["noise (estimated)", num(d.noise_std, ".3g")],
-            *[[k.lower(), v] for k, _, v in (x.partition(": ") for x in d.measurement_lines())],
+            *measurement,
             ["discovered structure", d.discovered.name if d.discovered else ""],
             [f"{sel} family", d.family or ""],
         ]
@@ -57,6 +81,10 @@ class OverviewSections:
                     + (f" (runs {', '.join(d.outliers.get('runs', []))}; see data)" if n else ""),
                 ]
             )
+        failed = failed_tasks(d)
+        if failed:
+            n = len(failed)
+            rows.append(["failed", f"{n} task{'' if n == 1 else 's'} failed (see Failed tasks)"])
         rows.append(["hystdisc", d.version or __version__])
         self.table(["item", "value"], rows, left=2)
         if d.equal_fits:
@@ -66,7 +94,21 @@ class OverviewSections:
             )
         self.html.append("<h3>Discovered equations</h3>")
         self.md += ["### Discovered equations", ""]
-        self.pre(disc.equations())
+        self.pre(self.rd.equations)
+
+    def failed(self) -> None:
+        """The failed tasks (families, starts, folds, effects), when any failed."""
+        failed = failed_tasks(self.res)
+        if not failed:
+            return
+        self.h2("failed")
+        self.p(
+            "These tasks failed; the run went on without them (a failed family is not in "
+            "the comparison, a failed start or fold is left out of its fit or held-out "
+            "error, a failed effect was not added):",
+            cls="bad",
+        )
+        self.table(["task", "reason"], [[k, v] for k, v in failed.items()], left=2)
 
     def data(self) -> None:
         """The data section: the runs, their currents and the noise."""
@@ -91,7 +133,7 @@ class OverviewSections:
             )
         self.p(
             f"{len(ds.runs)} {ds.experiment} runs from {ds.source}; measured signal: {meas}; "
-            f"estimated measurement noise {num(self.disc.noise_std_, '.3g')} (data units)."
+            f"estimated measurement noise {num(self.rd.noise_std, '.3g')} (data units)."
             + (
                 " Release runs are trimmed where the motion has died below the noise."
                 if self.released
@@ -126,13 +168,13 @@ class OverviewSections:
         from hystdisc.plotting import plot_runs
 
         fig, axes = new_figure(1, 1, 10, 3.6)
-        shown = Dataset([ds.runs[k] for k in range(len(ds.runs))], ds.experiment, ds.source)
-        plot_runs(shown, ax=axes[0, 0])
+        plot_runs(ds, ax=axes[0, 0])
         axes[0, 0].set_title("measured runs", fontsize="medium")
         self.figure(fig)
 
     def time_series(self) -> None:
-        """The time-series section: measured and simulated output of the shown runs."""
+        """The time-series section: measured and simulated output of the shown runs, one
+        figure per fit (the selected family first), each with its residual."""
         from hystdisc.plotting import plot_fit
 
         self.h2("time-series")
@@ -144,38 +186,88 @@ class OverviewSections:
             start = " (release runs from their fitted initial angle)"
         self.p(
             f"Output-error fits: every run simulated with each fitted model{start}, dashed, "
-            "over the measurement (grey); right, each model's residual (simulated - "
-            "measured)." + self.shown_note(),
+            "over the measurement (grey), one figure per model, the selected one first; "
+            "right, the model's residual (simulated - measured)." + self.shown_note(),
             md=False,
         )
         self.md += ["Figures: see the HTML report.", ""]
-        signals = fit_signals(self.disc, self.shown)
+        signals = [self.rd.signals[k] for k in self.shown]
         if not signals:
             return
         ylabel = "torque" if self.units == "torque" else "angle [rad]"
-        # worst fit first, so that the best is drawn on top
-        fits = fits_of(self.disc)
-        keys = sorted(signals[0]["predictions"], key=lambda k: -float(fits[k].rms))
         n = len(signals)
-        fig, axes = new_figure(n, 2, 11, 1.0 + 2.2 * n, width_ratios=[2.2, 1])
-        for row, s in enumerate(signals):
-            k = thin(len(s["t"]))
-            for j, key in enumerate(keys):
+        height = 0.95 + 1.75 * n
+        for key in self.fit_order():
+            fit = self.rd.fits[key]
+            # placed by hand: the constrained layout is half the time of these figures
+            fig, axes = new_figure(
+                n, 2, 11, height, layout=None, width_ratios=[2.2, 1], sharex="col"
+            )
+            fig.subplots_adjust(
+                left=0.08,
+                right=0.985,
+                bottom=0.45 / height,
+                top=1 - 0.55 / height,
+                wspace=0.22,
+                hspace=0.5,
+            )
+            for row, s in enumerate(signals):
                 plot_fit(
-                    s["t"][k],
-                    s["measured"][k],
-                    s["predictions"][key][k],
+                    s["t"],
+                    s["measured"],
+                    s["predictions"][key],
                     ax=axes[row, 0],
                     residual_ax=axes[row, 1],
-                    label=fit_label(self.disc, key),
+                    label=fit["label"],
                     ylabel=ylabel,
                     title=f"run {s['name']}, {s['current']:g} A",
-                    draw_measured=j == 0,
                     legend=False,
                     color=FAMILY_COLORS.get(key),
                 )
-        figure_legend(fig, axes[0, 0])
-        self.figure(fig)
+                axes[row, 1].set_title("residual", fontsize="medium")
+                axes[row, 1].set_ylabel("")
+                if row < n - 1:  # the columns share their time axis: label it once
+                    for ax in axes[row]:
+                        ax.set_xlabel("")
+                        ax.tick_params(labelbottom=False)
+                else:
+                    axes[row, 0].set_xlabel("time [s]")
+            title = self.fit_title(key)
+            handles, labels = axes[0, 0].get_legend_handles_labels()
+            fig.legend(
+                handles,
+                labels,
+                loc="upper right",
+                bbox_to_anchor=(0.985, 1 - 0.05 / height),
+                ncols=len(labels),
+                fontsize="small",
+                frameon=False,
+            )
+            cls = ' class="selected"' if self.is_selected(key) else ""
+            self.html.append(f"<h3{cls}>{esc(title)}</h3>")
+            self.figure(fig)
+
+    def fit_order(self) -> list[str]:
+        """The fits drawn, the selected (or final) model first, then by RMS."""
+        fits = self.rd.fits
+        first = [k for k in ("final", self.res.family) if k in fits]
+        rest = sorted((k for k in fits if k not in first), key=lambda k: float(fits[k]["rms"]))
+        return first + rest
+
+    def is_selected(self, key: str) -> bool:
+        """``key`` is the selected (declared) family, or the final model built on it."""
+        return key == self.res.family or key == "final"
+
+    def fit_title(self, key: str) -> str:
+        """A fit's name in headings, the selected one marked, with its RMS."""
+        fit = self.rd.fits[key]
+        sel = "declared" if self.res.declared else "selected"
+        mark = ""
+        if key == self.res.family:
+            mark = f" ({sel} family)"
+        elif key == "final":
+            mark = f" (final model: the {sel} family with its accepted effects)"
+        return f"{fit['label']}{mark}, RMS {num(fit['rms'])}"
 
     def loops(self) -> None:
         """The loops section: torque against motion, measured and simulated."""
@@ -193,17 +285,16 @@ class OverviewSections:
                 f"The damper torque is not measured in a {self.fd.experiment} test: grey is "
                 f"the torque the rig equation implies, {eq} from the smoothed angle (k_s"
                 f"{'' if self.released else ' and J'} of the "
-                f"{'final' if final_fit(self.disc) else 'selected'} fit); dashed, each fitted "
+                f"{'final' if self.rd.final else 'selected'} fit); dashed, each fitted "
                 "model's damper torque against its own simulated velocity and angle."
             )
         self.p(text + self.shown_note(), md=False)
         self.md += ["Figures: see the HTML report.", ""]
-        loops = model_loops(self.disc, self.shown)
         n = len(self.shown)
-        fig, axes = new_figure(n, 2, 11, 0.6 + 3.0 * n)
+        fig, axes = new_figure(n, 2, 11, 0.9 + 3.0 * n)
         for row, r in enumerate(self.shown):
             items = []
-            for lp in loops:
+            for lp in self.rd.loops:
                 if lp["run"] != r:
                     continue
                 k = thin(len(lp["t"]))
@@ -213,6 +304,9 @@ class OverviewSections:
                 }
                 if lp["kind"] == "data":
                     lp["label"] = "data"
+                elif self.is_selected(lp["kind"]):
+                    lp["label"] += " (selected)" if lp["kind"] != "final" else " (final)"
+                    lp["style"] = {**lp["style"], "lw": 1.8}
                 items.append(lp)
             loops_figure(items, axes=list(axes[row]), legend=False)
             axes[row, 0].set_title(

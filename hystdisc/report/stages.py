@@ -3,11 +3,8 @@ residual spectrum)."""
 
 from __future__ import annotations
 
-import numpy as np
-
 from hystdisc.registry import effect_names, get_effect
 from hystdisc.report.markup import FAMILY_COLORS, ci_text, new_figure, num
-from hystdisc.report.signals import final_fit, fit_label, fit_sampling_rate, masked_residuals
 from hystdisc.results import ResidualSummary
 
 
@@ -19,7 +16,7 @@ class StageSections:
         """The selection section: stage 1's threshold path and inclusion probabilities."""
         from hystdisc.plotting import plot_inclusion, plot_selection_path
 
-        disc = self.disc
+        st = self.rd.stage1
         self.h2("selection")
         self.p(
             "Stage 1 (equation error): for each hysteresis shape the shape constants are "
@@ -28,15 +25,16 @@ class StageSections:
             "shape with the lowest BIC is the discovered structure."
         )
         rows, sel = [], []
-        for i, (shape, sf) in enumerate(disc.stage1_.items()):
-            if shape == disc.discovered_shape_:
+        for i, row in enumerate(st["rows"]):
+            chosen = row["shape"] == st["selected"]
+            if chosen:
                 sel.append(i)
             rows.append(
                 [
-                    shape + (" *" if shape == disc.discovered_shape_ else ""),
-                    ", ".join(sf.terms),
-                    ", ".join(f"{v:.4g}" for v in np.atleast_1d(sf.s)) or "–",
-                    num(sf.bic, ".1f"),
+                    row["shape"] + (" *" if chosen else ""),
+                    ", ".join(row["terms"]),
+                    ", ".join(f"{v:.4g}" for v in row["s"]) or "–",
+                    num(row["bic"], ".1f"),
                 ]
             )
         self.table(
@@ -45,13 +43,12 @@ class StageSections:
             left=2,
             sel=sel,
         )
-        best = disc.stage1_[disc.discovered_shape_]
-        if best.path:
+        if st["path"]:
             fig, axes = new_figure(2, 1, 10, 6.2, sharex=True, height_ratios=[3, 1.4])
             plot_selection_path(
-                best.path,
+                st["path"],
                 ax=list(axes[:, 0]),
-                title=f"STLSQ path, hysteresis shape '{best.shape}'",
+                title=f"STLSQ path, hysteresis shape '{st['shape']}'",
             )
             self.figure(
                 fig,
@@ -59,13 +56,13 @@ class StageSections:
                 "leaves the model where its curve drops to 0. Dashed red: the threshold with "
                 "the lowest BIC (the selected model).",
             )
-        if best.inclusion:
-            fig, axes = new_figure(1, 1, 7, 0.9 + 0.35 * len(best.inclusion))
-            plot_inclusion(best.inclusion, ax=axes[0, 0], title="ensemble inclusion")
+        if st["inclusion"]:
+            fig, axes = new_figure(1, 1, 7, 0.9 + 0.35 * len(st["inclusion"]))
+            plot_inclusion(st["inclusion"], ax=axes[0, 0], title="ensemble inclusion")
             self.figure(fig)
             self.table(
                 ["term", "inclusion probability"],
-                [[k, num(v, ".2f")] for k, v in best.inclusion.items()],
+                [[k, num(v, ".2f")] for k, v in st["inclusion"].items()],
             )
 
     def closing(self) -> None:
@@ -178,29 +175,28 @@ class StageSections:
         self._spectrum_figure(plot_residual_spectrum)
 
     def _spectrum_figure(self, plot_residual_spectrum) -> None:
-        disc, fd, res = self.disc, self.fd, self.res.residual
-        fs = fit_sampling_rate(fd)
+        sp, res = self.rd.spectrum, self.res.residual
         fig, axes = new_figure(1, 1, 9, 3.8)
         ax = axes[0, 0]
-        base = disc.family_fits_[disc.family_]
-        final = final_fit(disc)
-        if final is not None:
+        before = sp.get("before")
+        if before is not None:
             plot_residual_spectrum(
-                masked_residuals(base, fd),
-                fs,
+                before["residuals"],
+                sp["fs"],
                 ax=ax,
-                label=f"{disc.family_} (before)",
-                color=FAMILY_COLORS.get(disc.family_),
+                label=before["label"],
+                color=FAMILY_COLORS.get(before["key"]),
                 alpha=0.6,
             )
+        after = sp["after"]
         plot_residual_spectrum(
-            masked_residuals(final if final is not None else base, fd),
-            fs,
+            after["residuals"],
+            sp["fs"],
             ax=ax,
-            noise_std=disc.noise_std_,
+            noise_std=self.rd.noise_std,
             dominant_hz=res.dominant_hz if res else None,
-            label=fit_label(disc, "final") + " (after)" if final is not None else disc.family_,
-            color=FAMILY_COLORS["final" if final is not None else disc.family_],
+            label=after["label"],
+            color=FAMILY_COLORS.get(after["key"]),
         )
         ax.set_title(
             f"residual spectrum (Welch, averaged over runs); whiteness p = "

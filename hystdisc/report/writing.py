@@ -15,6 +15,7 @@ from hystdisc.report.document import Document
 from hystdisc.report.markup import CSS, SECTIONS, esc, md_line
 from hystdisc.report.overview import OverviewSections
 from hystdisc.report.signals import check_fitted
+from hystdisc.report.source import ReportData, load_report_data, report_data
 from hystdisc.report.stages import StageSections
 
 
@@ -23,14 +24,41 @@ class Report(
 ):
     """The whole report: the document and every section (one method per section id)."""
 
-    def __init__(self, disc, dataset: Dataset, max_runs: int, dpi: int, design=None) -> None:
-        super().__init__(disc, dataset, max_runs, dpi)
+    def __init__(self, rd: ReportData, max_runs: int, dpi: int, design=None) -> None:
+        super().__init__(rd, max_runs, dpi)
         self.design = design
+
+
+def as_report_data(source, dataset: Dataset | None = None) -> ReportData:
+    """What a report is drawn from: a fitted discovery and its dataset, report data, or
+    the path of a ``results.json`` with its report data beside it.
+
+    Parameters
+    ----------
+    source : Discovery, ReportData or path-like
+        A fitted discovery (with ``dataset``), report data, or a ``results.json``.
+    dataset : Dataset, optional
+        The dataset a discovery was fitted on.
+
+    Returns
+    -------
+    ReportData
+    """
+    if isinstance(source, ReportData):
+        return source
+    if isinstance(source, (str, os.PathLike)):
+        return load_report_data(source)
+    if dataset is None:
+        raise HystdiscError(
+            "a report of a Discovery needs the dataset it was fitted on; fix: pass it as "
+            "the second argument"
+        )
+    return report_data(source, dataset)
 
 
 def render_report(
     disc,
-    dataset: Dataset,
+    dataset: Dataset | None = None,
     max_runs: int = 5,
     dpi: int = 90,
     progress: Callable[[str], None] | None = None,
@@ -40,10 +68,11 @@ def render_report(
 
     Parameters
     ----------
-    disc : Discovery
-        A fitted discovery.
-    dataset : Dataset
-        The dataset it was fitted on.
+    disc : Discovery, ReportData or path-like
+        A fitted discovery, its report data (:func:`~hystdisc.report.source.report_data`),
+        or a ``results.json`` with the report data beside it (no refit).
+    dataset : Dataset, optional
+        The dataset a discovery was fitted on (not needed otherwise).
     max_runs : int
         Runs drawn in the per-run figures (one per current first).
     dpi : int
@@ -52,7 +81,7 @@ def render_report(
         Called with a short message per section.
     design : DesignResult or str, optional
         The runs to record next (:func:`hystdisc.design.design`) for the section "What
-        to test next", or why there is none; None: the section says how to get one.
+        to test next", or why there is none; None: the section is left out.
 
     Returns
     -------
@@ -61,14 +90,16 @@ def render_report(
     markdown : str
         The Markdown summary (tables only, no figures).
     """
-    check_fitted(disc)
-    rep = Report(disc, dataset, max_runs, dpi, design)
+    if not isinstance(disc, (ReportData, str, os.PathLike)):
+        check_fitted(disc)
+    rep = Report(as_report_data(disc, dataset), max_runs, dpi, design)
     title = f"hystdisc report — {rep.res.input}"
     for sid, _ in SECTIONS:
         if progress is not None:
             progress(f"report: {dict(SECTIONS)[sid].lower()}")
         getattr(rep, sid.replace("-", "_"))()
-    nav = "".join(f'<a href="#{esc(s)}">{esc(t)}</a>' for s, t in SECTIONS)
+    titles = dict(SECTIONS)
+    nav = "".join(f'<a href="#{esc(s)}">{esc(titles[s])}</a>' for s in rep.present)
     html_text = (
         '<!DOCTYPE html>\n<html lang="en">\n<head>\n<meta charset="utf-8">\n'
         '<meta name="viewport" content="width=device-width, initial-scale=1">\n'
@@ -123,7 +154,7 @@ def check_report_path(
 
 def write_report(
     disc,
-    dataset: Dataset,
+    dataset: Dataset | None,
     path: str | os.PathLike[str],
     force: bool = False,
     markdown: bool = True,
@@ -137,7 +168,8 @@ def write_report(
     Parameters
     ----------
     disc, dataset
-        As in :func:`render_report`.
+        As in :func:`render_report`: a fitted discovery and its dataset, report data and
+        None, or a ``results.json`` (with its report data beside it) and None.
     path : path-like
         The HTML file (``.html``); the Markdown summary goes to the same name with ``.md``.
     force : bool
