@@ -36,6 +36,7 @@ from hystdisc.errors import HystdiscError
 from hystdisc.fitting.data import FitData
 from hystdisc.fitting.jacobian import difference_jacobian, exact_jacobian
 from hystdisc.fitting.lm import levenberg_marquardt
+from hystdisc.fitting.motion_error import motion_covariance
 from hystdisc.fitting.parametrization import Parametrization, SystemParametrization
 from hystdisc.fitting.quantized import quantization_information_by_dwell
 from hystdisc.fitting.system_jacobian import lockstep_applies, system_jacobian
@@ -441,13 +442,17 @@ class OutputErrorFitter:
         tol = S.max() * 1e-10 if S.size else 0.0
         Sinv = np.where(S > tol, 1.0 / np.where(S > tol, S, 1.0), 0.0)
         cov_s = (Vt.T * Sinv**2) @ Vt
-        cov = s2 * cov_s / np.outer(scale, scale)
+        ainv = cov_s / np.outer(scale, scale)
+        cov = s2 * ainv
         if self.data.quantum > 0:  # quantization error: correlated, a sandwich
-            ainv = cov_s / np.outer(scale, scale)
             sizes = [int(np.count_nonzero(m)) for m in self.masks]
             pred = self._measured() + res
             B = quantization_information_by_dwell(Jm, pred, self.data.quantum, sizes)
             cov = s2 * ainv @ B @ ainv
+        # errors in the imposed motion: the force noise's part plus the motion's
+        motion = motion_covariance(self.data, self.par, x, nu, Jm, gram, ainv, self.row_offsets)
+        if motion is not None:
+            cov = cov * motion.force_scale(rss) + motion.cov
         covx = cov[: self.npar, : self.npar]
         # propagate to reported (incl. derived) parameters
         p = self.par.params(x)
