@@ -4,11 +4,12 @@ A driven test measures its motion too. Before issue 33 the fit drove the model w
 Savitzky-Golay smoothing of the measured motion and its derivative, and the intervals knew
 nothing of the motion's errors; now a periodic run's motion is a least-squares harmonic
 series (unbiased; the smoother where the series does not fit) and the estimate's errors are
-propagated into the covariance (``hystdisc/fitting/motion_error.py``). This benchmark
+propagated into the covariance (``hystdisc/fitting/motion_error.py``); a motion that does
+not repeat is estimated by local seventh-order polynomial fits instead of the smoother. This benchmark
 measures both on the same draws (A/B in one run):
 
 ``before``
-    ``motion_error.MOTION = "smoother"``, ``PROPAGATE = False``: main before issue 33.
+    ``motion_error.MOTION = "legacy"``, ``PROPAGATE = False``: main before issue 33.
 ``after``
     ``MOTION = "auto"``, ``PROPAGATE = True``: the default now.
 
@@ -28,7 +29,7 @@ Conditions (:data:`CONDITIONS`)
     (``q = ptp / 2**16``; its zero drawn uniformly over one step), no other motion noise.
     ``ramp``: motion noise 1e-4 rad and each sine's amplitude ramped in over the first
     second (``(1 - cos(pi t))/2``): not periodic, so the harmonic series is rejected and
-    the smoother (with its errors propagated) is what is measured.
+    the local polynomial fits (with their errors propagated) are what is measured.
 
 Fit: the true family by output error from the truth (``OutputErrorFitter`` on
 ``prepare_data``'s data, the intervals exactly as ``discover`` computes them at the
@@ -82,7 +83,7 @@ CONDITIONS = {
     "ramp": {"theta_noise": 1e-4, "bits": None, "ramp": 1.0},
 }
 #: The variants: name -> (motion_error.MOTION, motion_error.PROPAGATE).
-VARIANTS = {"before": ("smoother", False), "after": ("auto", True)}
+VARIANTS = {"before": ("legacy", False), "after": ("auto", True)}
 
 
 def sample_set(family: str, index: int) -> dict[str, float]:

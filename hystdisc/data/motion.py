@@ -14,6 +14,15 @@ about it here:
   spread: an error that is a fixed function of the motion repeats with it (a lattice too
   fine to be recognized, a 16-bit displacement channel whose error at a whole-sample period
   is the same every cycle) and is invisible from cycle to cycle, not in the differences;
+* **a motion that does not repeat** (a start-up ramp, a drift, a random or swept input) is
+  estimated by local polynomial fits (:func:`local_motion`: Savitzky-Golay of order
+  :data:`LOCAL_ORDER`, the velocity the fits' own slope) over a window of at most
+  :data:`LOCAL_CYCLES` of the shortest cycle the motion holds (:func:`signal_band`: the
+  highest periodogram bin above the noise). Its random error is larger than a wider
+  window's, and is propagated; its bias is not, and is what the window is chosen against:
+  the smoother of the equation-error stage (third order, its window chosen to leave a
+  residual of 1.2 times the noise, the velocity differenced and smoothed again) passed
+  99.67 % of a 5 Hz velocity at 500 Hz, these fits 100.00 %;
 * **an unbiased motion estimate for periodic runs** (:func:`fit_harmonics`): a least-squares
   Fourier series at the motion's fundamental (refined by least squares), with the harmonics
   the data show (each kept when its Wald statistic beats the BIC penalty ``2 ln N``), and
@@ -53,6 +62,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.optimize import minimize_scalar
+from scipy.signal import savgol_filter
 from scipy.stats import chi2
 
 from hystdisc.data.noise import detect_period, period_noise
@@ -65,8 +75,11 @@ __all__ = [
     "MotionNoise",
     "RunMotionNoise",
     "fit_harmonics",
+    "local_motion",
+    "local_window",
     "motion_noise",
     "pooled_motion_noise",
+    "signal_band",
 ]
 
 #: Cycles a record must hold for its harmonic fit.
@@ -84,6 +97,15 @@ BLOCK_ALPHA = 1e-3
 #: The cycle-to-cycle estimate is used unless the differences exceed it by more than this
 #: many of its relative standard errors (``1 / sqrt(differences)``).
 C2C_MARGIN = 4.0
+#: Polynomial order of the local fits of a motion that is not periodic (the fallback).
+LOCAL_ORDER = 7
+#: Their window spans at most this share of the shortest cycle the motion holds (a
+#: seventh-order fit over half a cycle passes a sine's slope to 1e-5).
+LOCAL_CYCLES = 0.5
+#: Their window in samples, at most (the Savitzky-Golay smoother's cap).
+LOCAL_MAX_WINDOW = 151
+#: A periodogram bin holds signal when its power is above this many times the noise's.
+SIGNAL_POWER = 30.0
 #: A noise level below this fraction of the motion's RMS counts as noise-free (synthetic
 #: motion): the tests then use this floor instead of zero.
 NOISE_FLOOR = 1e-10
@@ -307,9 +329,15 @@ def _basis(t: np.ndarray, f: float, ks: Sequence[int]) -> tuple[np.ndarray, np.n
     B = np.empty((tt.size, 1 + 2 * len(ks)))
     dB = np.zeros_like(B)
     B[:, 0] = 1.0
+    # exp(i k w t) by powers of exp(i w t): one pair of trigonometric calls per record
+    # (the round-off grows as k times the machine epsilon)
+    e1 = np.exp(1j * 2.0 * np.pi * f * tt)
+    ek, k0 = np.ones_like(e1), 0
     for j, k in enumerate(ks):
+        ek = ek * e1 ** (k - k0) if k - k0 > 1 else ek * e1
+        k0 = k
         om = 2.0 * np.pi * k * f
-        c, s = np.cos(om * tt), np.sin(om * tt)
+        c, s = ek.real, ek.imag
         B[:, 1 + 2 * j], B[:, 2 + 2 * j] = c, s
         dB[:, 1 + 2 * j], dB[:, 2 + 2 * j] = -om * s, om * c
     return B, dB
@@ -428,3 +456,71 @@ def _block_note(r: np.ndarray, s: float, per: int) -> str:
             f"motion noise's (bound {bound:.3g}): the motion does not repeat there"
         )
     return ""
+
+
+def signal_band(t: np.ndarray, x: np.ndarray, noise_std: float) -> float:
+    """The highest frequency (Hz) at which a record holds power above its noise.
+
+    The periodogram of the mean-removed, Hann-windowed record; a bin holds signal when
+    its power exceeds :data:`SIGNAL_POWER` times what white noise of ``noise_std`` puts
+    there. The Nyquist frequency when even the highest bin does (a noise-free record).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = np.arange(4000) / 1000.0
+    >>> x = np.sin(2 * np.pi * 3.0 * t) + np.random.default_rng(0).normal(0, 1e-3, t.size)
+    >>> bool(3.0 <= signal_band(t, x, 1e-3) < 6.0)
+    True
+    """
+    x = np.asarray(x, dtype=float)
+    n = x.size
+    dt = float(t[-1] - t[0]) / max(n - 1, 1)
+    win = np.hanning(n)
+    power = np.abs(np.fft.rfft((x - x.mean()) * win)) ** 2
+    floor = SIGNAL_POWER * float(noise_std) ** 2 * float(np.sum(win**2))
+    above = np.flatnonzero(power > floor)
+    f = np.fft.rfftfreq(n, dt)
+    return float(f[above[-1]]) if above.size and above[-1] > 0 else float(f[-1])
+
+
+def local_window(t: np.ndarray, x: np.ndarray, noise_std: float) -> int:
+    """The window (odd, samples) of :func:`local_motion` for a record: :data:`LOCAL_CYCLES`
+    of the shortest cycle it holds (:func:`signal_band`), within ``LOCAL_ORDER + 2`` and
+    :data:`LOCAL_MAX_WINDOW` samples (and the record).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = np.arange(2000) / 500.0
+    >>> x = 0.05 * np.sin(2 * np.pi * 5.0 * t) + np.random.default_rng(0).normal(0, 1e-4, t.size)
+    >>> local_window(t, x, 1e-4)
+    47
+    """
+    n = np.asarray(x).size
+    dt = float(t[-1] - t[0]) / max(n - 1, 1)
+    w = int(LOCAL_CYCLES / (signal_band(t, x, noise_std) * dt))
+    hi = min(LOCAL_MAX_WINDOW, n if n % 2 else n - 1)
+    w = max(LOCAL_ORDER + 2, min(w, hi))
+    return w if w % 2 else w - 1
+
+
+def local_motion(x: np.ndarray, window: int, dt: float, derivatives: int = 2) -> tuple:
+    """The motion, velocity and acceleration of local polynomial fits (Savitzky-Golay of
+    order :data:`LOCAL_ORDER`, the derivatives the fits' own). Linear in ``x``, and
+    column by column for a 2-D ``x`` (samples along the first axis); ``derivatives``: how
+    many derivatives to return (the motion first).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = np.arange(1000) / 500.0
+    >>> th, w, a = local_motion(0.05 * np.sin(2 * np.pi * 5.0 * t), 47, 1 / 500.0)
+    >>> round(float(np.max(np.abs(w[50:-50])) / (0.05 * 2 * np.pi * 5.0)), 6)
+    1.0
+    """
+    x = np.asarray(x, dtype=float)
+    return tuple(
+        savgol_filter(x, window, LOCAL_ORDER, deriv=k, delta=dt, axis=0)
+        for k in range(derivatives + 1)
+    )

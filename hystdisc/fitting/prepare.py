@@ -118,9 +118,9 @@ def prepare_data(
                 f"{dataset.source}, run {r.name}: the run never moves; fix: remove the run"
             )
         m = np.ones(r.t.size, dtype=bool)
-        if getattr(d, "method", "smoother") == "smoother":  # the smoother's edges
-            m[: d.window // 2] = False
-            m[-(d.window // 2) or None :] = False
+        edge = getattr(d, "edge", d.window // 2)  # a smoother's one-sided ends
+        m[:edge] = False
+        m[-edge or None :] = False
         if exp.motion_imposed:
             # forget the unknown initial z: skip until the motion has swept its range once
             travel = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(d.theta)))])
