@@ -30,6 +30,7 @@ Conditions (:data:`CONDITIONS`)
     ``ramp``: motion noise 1e-4 rad and each sine's amplitude ramped in over the first
     second (``(1 - cos(pi t))/2``): not periodic, so the harmonic series is rejected and
     the local polynomial fits (with their errors propagated) are what is measured.
+    ``motion10``: motion noise 1e-3 rad (0.5-2 % of the amplitudes), periodic.
 
 Fit: the true family by output error from the truth (``OutputErrorFitter`` on
 ``prepare_data``'s data, the intervals exactly as ``discover`` computes them at the
@@ -81,6 +82,7 @@ CONDITIONS = {
     "motion": {"theta_noise": 1e-4, "bits": None, "ramp": 0.0},
     "q16": {"theta_noise": 0.0, "bits": 16, "ramp": 0.0},
     "ramp": {"theta_noise": 1e-4, "bits": None, "ramp": 1.0},
+    "motion10": {"theta_noise": 1e-3, "bits": None, "ramp": 0.0},
 }
 #: The variants: name -> (motion_error.MOTION, motion_error.PROPAGATE).
 VARIANTS = {"before": ("legacy", False), "after": ("auto", True)}
