@@ -229,20 +229,21 @@ def measurement_lines(res: Results) -> list[str]:
 
 def _motion_line(motion: dict) -> str:
     """``Motion noise: ...``: its level, how it was estimated, how the motion was estimated
-    (and why a run's harmonic series was not used)."""
+    (and the first reason a run's harmonic series was not used)."""
     kinds: dict[str, int] = {}
     notes = []
     for name, est in (motion.get("estimates") or {}).items():
         kinds[est.get("estimate")] = kinds.get(est.get("estimate"), 0) + 1
-        if est.get("estimate") == "smoother" and est.get("note"):
-            notes.append(f"{name}: {est['note']}")
-    how = ", ".join(f"{n} {k}" for k, n in kinds.items())
+        if est.get("estimate") != "harmonic" and est.get("note"):
+            notes.append(f"run {name}: {est['note']}")
     line = f"Motion noise: {motion['std']:.3g} from {motion.get('method')}"
-    if how:
-        line += f"; motion estimated by {how} (errors propagated to the intervals)"
+    if kinds:
+        how = ", ".join(f"{n} {k}" for k, n in kinds.items())
+        carried = "not propagated" if set(kinds) == {"filter"} else "propagated to the intervals"
+        line += f"; motion estimated by {how} (its errors {carried})"
     if notes:
         more = f" (and {len(notes) - 1} more)" if len(notes) > 1 else ""
-        line += f"; smoother for run {notes[0]}{more}"
+        line += f"; {notes[0]}{more}"
     return line
 
 
