@@ -16,8 +16,10 @@ are forward differences, all columns in one batched
 simulation call (a run's nuisance parameters only touch that run, so only that run is
 re-simulated).
 
-At the optimum the Jacobian gives 95 % intervals (``s^2 (J^T J)^-1``), an identifiability
-check (intervals wider than the value, near-singular directions of the column-scaled
+At the optimum the Jacobian gives 95 % intervals (``s^2 (J^T J)^-1``; the errors of a
+driven run's motion estimate are added,
+:func:`~hystdisc.fitting.motion_error.motion_covariance`), an identifiability check
+(intervals wider than the value, near-singular directions of the column-scaled
 Jacobian), BIC, and held-out errors: each fold (one test condition, or one run when all
 runs share one) is left out, the fit without it is estimated by a Gauss-Newton step from
 the joint optimum and :data:`HELDOUT_STEPS` Levenberg-Marquardt iterations on the other

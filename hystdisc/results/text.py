@@ -234,12 +234,16 @@ def _motion_line(motion: dict) -> str:
     notes = []
     for name, est in (motion.get("estimates") or {}).items():
         kinds[est.get("estimate")] = kinds.get(est.get("estimate"), 0) + 1
-        if est.get("estimate") != "harmonic" and est.get("note"):
+        if est.get("estimate") in ("local", "smoother") and est.get("note"):
             notes.append(f"run {name}: {est['note']}")
     line = f"Motion noise: {motion['std']:.3g} from {motion.get('method')}"
     if kinds:
         how = ", ".join(f"{n} {k}" for k, n in kinds.items())
-        carried = "not propagated" if set(kinds) == {"filter"} else "propagated to the intervals"
+        carried = (
+            "not propagated: the declared filter hides the motion's noise"
+            if set(kinds) == {"filter"}
+            else "propagated to the intervals"
+        )
         line += f"; motion estimated by {how} (its errors {carried})"
     if notes:
         more = f" (and {len(notes) - 1} more)" if len(notes) > 1 else ""
