@@ -3,10 +3,10 @@
 A driven test measures its motion too. Before issue 33 the fit drove the model with a
 Savitzky-Golay smoothing of the measured motion and its derivative, and the intervals knew
 nothing of the motion's errors; now a periodic run's motion is a least-squares harmonic
-series (unbiased; the smoother where the series does not fit) and the estimate's errors are
-propagated into the covariance (``hystdisc/fitting/motion_error.py``); a motion that does
-not repeat is estimated by local seventh-order polynomial fits instead of the smoother. This benchmark
-measures both on the same draws (A/B in one run):
+series (unbiased), a motion that does not repeat is estimated by local seventh-order
+polynomial fits, and the estimate's errors are propagated into the covariance
+(``hystdisc/fitting/motion_error.py``). This benchmark measures both on the same draws
+(A/B in one run):
 
 ``before``
     ``motion_error.MOTION = "legacy"``, ``PROPAGATE = False``: main before issue 33.

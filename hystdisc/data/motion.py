@@ -1,8 +1,7 @@
 """The imposed motion of a driven test, measured: its noise, and an unbiased estimate of it.
 
 A driven test imposes the motion and measures it too, so the motion the model is driven
-with carries measurement errors of its own (errors in variables). Two things are done
-about it here:
+with carries measurement errors of its own (errors in variables). Here:
 
 * **its noise** (:func:`motion_noise`), per run: from cycle-to-cycle differences when the
   motion repeats every whole number of samples (:func:`~hystdisc.data.detect_period`,
@@ -14,28 +13,28 @@ about it here:
   spread: an error that is a fixed function of the motion repeats with it (a lattice too
   fine to be recognized, a 16-bit displacement channel whose error at a whole-sample period
   is the same every cycle) and is invisible from cycle to cycle, not in the differences;
+* **an unbiased motion estimate for periodic runs** (:func:`fit_harmonics`): a least-squares
+  Fourier series at the motion's fundamental (refined by least squares), with the harmonics
+  the data show (each kept when its Wald statistic is significant at :data:`HARMONIC_ALPHA`
+  over all the candidates), and its analytic derivative as the velocity. A smoother
+  attenuates what it passes: the equation-error stage's (Savitzky-Golay of third order,
+  its window chosen to leave a residual of 1.2 times the noise, the velocity differenced
+  and smoothed again) took 0.33 % off the velocity of a 5 Hz sine sampled at 500 Hz, which
+  biased the dashpot coefficients by 3 standard errors. The series has no such bias, and
+  its random error is the projection of the noise on its few columns
+  (:meth:`HarmonicMotion.error_modes`). It is *accepted* only when its residual is at the
+  motion noise: overall RMS at most :data:`ACCEPT_RMS` times the noise, and no cycle (or
+  block) whose mean square is beyond the chi-square bound of the noise
+  (:data:`BLOCK_ALPHA`, Bonferroni over the blocks) — a start-up ramp, a drift or a
+  history that is not periodic fails;
 * **a motion that does not repeat** (a start-up ramp, a drift, a random or swept input) is
   estimated by local polynomial fits (:func:`local_motion`: Savitzky-Golay of order
   :data:`LOCAL_ORDER`, the velocity the fits' own slope) over a window of at most
   :data:`LOCAL_CYCLES` of the shortest cycle the motion holds (:func:`signal_band`: the
   highest periodogram bin above the noise). Its random error is larger than a wider
   window's, and is propagated; its bias is not, and is what the window is chosen against:
-  the smoother of the equation-error stage (third order, its window chosen to leave a
-  residual of 1.2 times the noise, the velocity differenced and smoothed again) passed
-  99.67 % of a 5 Hz velocity at 500 Hz, these fits 100.00 %;
-* **an unbiased motion estimate for periodic runs** (:func:`fit_harmonics`): a least-squares
-  Fourier series at the motion's fundamental (refined by least squares), with the harmonics
-  the data show (each kept when its Wald statistic is significant at
-  :data:`HARMONIC_ALPHA` over all the candidates), and
-  its analytic derivative as the velocity. A smoother (Savitzky-Golay) attenuates what it
-  passes: at a window chosen by the discrepancy principle it took 0.33 % off the velocity of
-  a 5 Hz sine sampled at 500 Hz, which biased the dashpot coefficients by several standard
-  errors. The series has no such bias, and its random error is the projection of the noise
-  on its few columns (:meth:`HarmonicMotion.error_modes`). It is *accepted* only when its
-  residual is at the motion noise: overall RMS at most :data:`ACCEPT_RMS` times the noise,
-  and no cycle (or block) whose mean square is beyond the chi-square bound of the noise
-  (:data:`BLOCK_ALPHA`, Bonferroni over the blocks) — a start-up ramp, a drift or a history
-  that is not periodic fails and the caller falls back to its smoother.
+  where the smoother passed 99.67 % of a 5 Hz velocity at 500 Hz, these fits pass
+  100.00 %.
 
 Examples
 --------
@@ -203,9 +202,9 @@ class MotionNoise:
         Each run's estimate.
     estimates : dict of str to dict
         How each run's motion was estimated for the fit: ``estimate`` (``"harmonic"``,
-        ``"local"``, ``"filter"`` or ``"smoother"``), and ``harmonics``, ``frequency``, ``residual``
-        (the harmonic fit's, when one was tried) and ``note`` (why a harmonic fit was
-        not used).
+        ``"local"``, ``"filter"`` or ``"smoother"``), and ``harmonics``, ``frequency``,
+        ``residual`` (the harmonic fit's, when one was tried) and ``note`` (why a harmonic
+        fit was not used).
     """
 
     std: float

@@ -200,7 +200,8 @@ def build_results(disc: Any, dataset: Any) -> Results:
     ``terms_``, ``discovered_name_``, ``discovered_shape_``, ``stage1_`` (shape -> object
     with ``terms``, ``bic``, ``inclusion``), ``discovered_fit_``, ``family_fits_``,
     ``family_``, ``declared_``, ``equal_fits_``, ``fit_data_`` (its ``mask``, ``names``,
-    ``folds()``, ``heldout_by``, ``motion_noise``), ``conditions_``, ``envelope_``, ``admissibility_``,
+    ``folds()``, ``heldout_by``, ``motion_noise``), ``conditions_``, ``envelope_``,
+    ``admissibility_``,
     ``final_admissibility_``, ``selection_note_``, ``single_current_``, ``currents_``,
     ``noise_`` (optional: the :class:`~hystdisc.data.NoiseEstimate`), ``outliers_`` (its
     ``to_dict()``), ``reselection_`` and ``reduction_`` (optional, their ``to_dict()``), ``loop_``
