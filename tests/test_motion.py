@@ -105,6 +105,16 @@ def test_motion_noise_is_reported(issue_fit):
     assert "Motion noise: " in issue_fit.results_.report()
 
 
+def test_a_harmonic_run_keeps_its_start_up_out_of_the_residual():
+    """The unknown initial z: a driven run's residual starts once the motion has swept its
+    range (the series has no one-sided ends to trim, the start-up still goes)."""
+    _, fd, _, _ = prepare_data(issue_data())
+    for k in range(fd.n_runs):
+        th = fd.theta[k]
+        travel = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(th)))])
+        assert np.array_equal(fd.mask[k], travel >= np.ptp(th))
+
+
 def test_release_data_have_no_motion_noise():
     _, fd, _, _ = prepare_data(generate("dahl", currents=(0, 1), duration=2.0, seed=1))
     assert fd.motion_noise is None and fd.motion_errors is None

@@ -119,8 +119,9 @@ def prepare_data(
             )
         m = np.ones(r.t.size, dtype=bool)
         edge = getattr(d, "edge", d.window // 2)  # a smoother's one-sided ends
-        m[:edge] = False
-        m[-edge or None :] = False
+        if edge > 0:
+            m[:edge] = False
+            m[-edge:] = False
         if exp.motion_imposed:
             # forget the unknown initial z: skip until the motion has swept its range once
             travel = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(d.theta)))])
