@@ -9,7 +9,8 @@ polynomial fits over at most half the shortest cycle
 (:func:`hystdisc.data.motion.local_motion`: nearly unbiased, noisier), and says why in its
 ``note``. The smoother of the equation-error stage (:func:`hystdisc.discovery.differentiate`,
 what the fit used before issue 33, ``MOTION = "legacy"``) passed 99.67 % of a 5 Hz velocity
-at 500 Hz and biased the dashpots by several standard errors. Every estimate is a linear
+at 500 Hz and biased the dashpots by 3 standard errors on issue 33's command (its
+intervals then missed the truth of c_1, c_2, delta and k_s). Every estimate is a linear
 operator ``S`` on the measured motion, so its random error is ``S`` applied to the motion
 noise: :meth:`MotionEstimate.modes` writes it as independent unit-variance modes, exactly
 (the series' ``2 K + 2`` parameters, the fundamental included) or from
@@ -62,9 +63,9 @@ from hystdisc.discovery import differentiate
 from hystdisc.discovery.differentiation import POLYORDER, block_factor
 from hystdisc.fitting.measurement import unfiltered_motion
 
-#: Noise draws of a motion estimate whose error has no closed form (a smoother, a rig
-#: filter's reconstruction): the covariance they add is known to about ``sqrt(2 / draws)``
-#: of itself (14 %).
+#: Noise draws of a motion estimate whose error is not written out (local fits, the
+#: legacy smoother): the covariance they add is known to about ``sqrt(2 / draws)`` of
+#: itself (14 %).
 MOTION_DRAWS = 100
 #: Seed of those draws (with the run's index: the same draws on every call).
 MOTION_SEED = 33
