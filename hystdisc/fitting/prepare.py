@@ -104,14 +104,17 @@ def prepare_data(
     )
     windows = []
     # driven: the measured motion is estimated (a harmonic series of a periodic run, else
-    # the smoother), its noise and the estimate's errors carried to the intervals
+    # local fits), its noise and the estimate's errors carried to the intervals
     motion = []
+    # a motion recorded through a declared filter: the fit's is reconstructed below, and
+    # the equation-error stage keeps the smoothed record, as before the estimates
+    filtered = dataset.filter is not None and "theta" in dataset.filter["channels"]
     for k, r in enumerate(runs):
+        est = None
         if exp.motion_imposed and np.ptp(r.theta) > 0:
-            d = estimate_motion(r.t, r.theta, theta_noise, k, motion_noise(r.t, r.theta))
-            motion.append(d)
-        else:
-            d = differentiate(r.t, r.theta, theta_noise)
+            est = estimate_motion(r.t, r.theta, theta_noise, k, motion_noise(r.t, r.theta))
+            motion.append(est)
+        d = est if est is not None and not filtered else differentiate(r.t, r.theta, theta_noise)
         windows.append(d.window)
         if not np.all(np.isfinite(d.theta_dot)) or np.ptp(r.theta) == 0:
             raise HystdiscError(
@@ -147,7 +150,7 @@ def prepare_data(
     if dataset.filter is not None:  # the fit sees the damper through the rig's filter
         windows = filter_windows(dataset.filter, runs, dataset.source)
         apply_filter(fd, windows, dataset.filter["channels"], [r.theta for r in runs])
-        if motion and "theta" in dataset.filter["channels"]:
+        if motion and filtered:
             motion = [
                 filter_estimate(est, r.t, r.theta, w) if w > 1 else est
                 for est, r, w in zip(motion, runs, windows, strict=True)
