@@ -47,10 +47,9 @@ from typing import Any
 
 import numpy as np
 
-from hystdisc.data import Dataset, estimate_noise, filter_windows
-from hystdisc.discovery.differentiation import differentiate
+from hystdisc.data import Dataset
 from hystdisc.errors import HystdiscError
-from hystdisc.fitting.measurement import unfiltered_motion
+from hystdisc.fitting.predict import signals
 from hystdisc.models import Model, TermModel
 from hystdisc.models.system import FamilySystem, StateSpaceModel, TermSystem
 from hystdisc.models.wheel import RIG_TERMS
@@ -235,9 +234,10 @@ def driven_inputs(dataset: Dataset) -> list[tuple[np.ndarray, np.ndarray]]:
     """The input of the exported system for every run of ``dataset``: ``(T, U)`` with
     ``U`` rows ``theta, theta_dot, current``, the motion ``hystdisc predict`` imposes.
 
-    That motion is the smoothed angle and its derivative (the differentiation discovery
-    uses), and, when the rig file declares a filter on ``theta``, the motion rebuilt from
-    the filtered record (:func:`hystdisc.fitting.measurement.unfiltered_motion`).
+    That motion is the fit's estimate of it (:func:`hystdisc.fitting.predict.signals`:
+    a periodic run's harmonic series, else local fits), and, when the rig file declares a
+    filter on ``theta``, the motion rebuilt from the filtered record
+    (:func:`hystdisc.fitting.measurement.unfiltered_motion`).
 
     Examples
     --------
@@ -248,17 +248,10 @@ def driven_inputs(dataset: Dataset) -> list[tuple[np.ndarray, np.ndarray]]:
     >>> U.shape, float(U[2, 0])
     ((3, 1000), 0.5)
     """
-    runs = list(dataset.runs)
-    chans = tuple(dataset.filter["channels"]) if dataset.filter else ()
-    windows = filter_windows(dataset.filter, runs, dataset.source) if chans else [0] * len(runs)
     out = []
-    for r, w in zip(runs, windows, strict=True):
-        d = differentiate(r.t, r.theta, estimate_noise(r.theta, r.fs))
-        theta, theta_dot = d.theta, d.theta_dot
-        if "theta" in chans and w > 1:
-            theta, theta_dot = unfiltered_motion(r.t, r.theta, w)
+    for r, d in zip(dataset.runs, signals(dataset, get_experiment("driven")), strict=True):
         current = np.full(r.t.size, float(r.current))
-        out.append((np.asarray(r.t, dtype=float), np.vstack([theta, theta_dot, current])))
+        out.append((np.asarray(r.t, dtype=float), np.vstack([d.theta, d.theta_dot, current])))
     return out
 
 

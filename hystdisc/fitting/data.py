@@ -18,6 +18,7 @@ Examples
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -25,6 +26,10 @@ from hystdisc.data.conditions import condition_folds
 from hystdisc.registry import get_experiment
 from hystdisc.simulation import input_slopes
 from hystdisc.stats import samples_per_cycle
+
+if TYPE_CHECKING:
+    from hystdisc.data.motion import MotionNoise
+    from hystdisc.fitting.motion_error import MotionEstimate
 
 #: Samples per cycle of the motion kept by the bulk of an output-error fit (the fit then
 #: finishes on the full data, so the optimum, intervals and BIC refer to every sample).
@@ -59,6 +64,12 @@ class FitData:
     #: Quantization error is a fixed sawtooth of the true output, correlated wherever the
     #: output dwells within a step, and the fit's intervals account for it
     quantum: float = 0.0
+    #: driven: each run's motion estimate and how it errs (None: the motion is exact, or
+    #: not imposed); its errors enter the intervals (fitting/motion_error.py). A decimated
+    #: copy has none: only a fit's final, full-data intervals propagate them
+    motion_errors: list[MotionEstimate | None] | None = None
+    #: driven: the noise on the measured motion (``results.json``: ``motion_noise``)
+    motion_noise: MotionNoise | None = None
     _bulk: FitData | None = field(default=None, init=False, repr=False, compare=False)
     _bulk_done: bool = field(default=False, init=False, repr=False, compare=False)
 
@@ -171,6 +182,8 @@ class FitData:
             self.conditions,
             self.filter_windows,
             self.quantum,
+            None,
+            self.motion_noise,
         )
 
     def subset(self, idx: list[int]) -> FitData:
@@ -193,6 +206,8 @@ class FitData:
             None if self.conditions is None else pick(self.conditions),
             None if self.filter_windows is None else pick(self.filter_windows),
             self.quantum,
+            None if self.motion_errors is None else pick(self.motion_errors),
+            self.motion_noise,
         )
 
     def folds(self) -> list[list[int]]:

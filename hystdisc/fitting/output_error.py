@@ -16,8 +16,10 @@ are forward differences, all columns in one batched
 simulation call (a run's nuisance parameters only touch that run, so only that run is
 re-simulated).
 
-At the optimum the Jacobian gives 95 % intervals (``s^2 (J^T J)^-1``), an identifiability
-check (intervals wider than the value, near-singular directions of the column-scaled
+At the optimum the Jacobian gives 95 % intervals (``s^2 (J^T J)^-1``; the errors of a
+driven run's motion estimate are added,
+:func:`~hystdisc.fitting.motion_error.motion_covariance`), an identifiability check
+(intervals wider than the value, near-singular directions of the column-scaled
 Jacobian), BIC, and held-out errors: each fold (one test condition, or one run when all
 runs share one) is left out, the fit without it is estimated by a Gauss-Newton step from
 the joint optimum and :data:`HELDOUT_STEPS` Levenberg-Marquardt iterations on the other
@@ -36,6 +38,7 @@ from hystdisc.errors import HystdiscError
 from hystdisc.fitting.data import FitData
 from hystdisc.fitting.jacobian import difference_jacobian, exact_jacobian
 from hystdisc.fitting.lm import levenberg_marquardt
+from hystdisc.fitting.motion_error import motion_covariance
 from hystdisc.fitting.parametrization import Parametrization, SystemParametrization
 from hystdisc.fitting.quantized import quantization_information_by_dwell
 from hystdisc.fitting.system_jacobian import lockstep_applies, system_jacobian
@@ -449,13 +452,17 @@ class OutputErrorFitter:
         tol = S.max() * 1e-10 if S.size else 0.0
         Sinv = np.where(S > tol, 1.0 / np.where(S > tol, S, 1.0), 0.0)
         cov_s = (Vt.T * Sinv**2) @ Vt
-        cov = s2 * cov_s / np.outer(scale, scale) * (N / n_eff)
+        ainv = cov_s / np.outer(scale, scale)
+        cov = s2 * ainv * (N / n_eff)  # a declared filter's correlation widens them
         if self.data.quantum > 0:  # quantization error: correlated, a sandwich
-            ainv = cov_s / np.outer(scale, scale)
             sizes = [int(np.count_nonzero(m)) for m in self.masks]
             pred = self._measured() + res
             B = quantization_information_by_dwell(Jm, pred, self.data.quantum, sizes)
             cov = s2 * ainv @ B @ ainv
+        # errors in the imposed motion: the force noise's part plus the motion's
+        motion = motion_covariance(self.data, self.par, x, nu, Jm, gram, ainv, self.row_offsets)
+        if motion is not None:
+            cov = cov * motion.force_scale(rss) + motion.cov
         covx = cov[: self.npar, : self.npar]
         # propagate to reported (incl. derived) parameters
         p = self.par.params(x)
@@ -559,7 +566,12 @@ class OutputErrorFitter:
         return out
 
     def _fold_refit(
-        self, fold: list[int], v_gn: np.ndarray, rss_gn: float | None, full: bool = False
+        self,
+        fold: list[int],
+        v_gn: np.ndarray,
+        rss_gn: float | None,
+        full: bool = False,
+        joint: tuple[np.ndarray, float] | None = None,
     ) -> np.ndarray:
         """The parameters fitted without the runs ``fold``: the Gauss-Newton estimate
         ``v_gn`` when the other runs' RSS there is its linear prediction ``rss_gn`` (within
@@ -567,7 +579,10 @@ class OutputErrorFitter:
         Levenberg-Marquardt iterations on the other runs from it (the linear step alone
         misjudges a fold that moves the fit far). ``full``: a complete fit on the other
         runs from ``v_gn`` (up to ``max_nfev`` iterations; ``rss_gn`` is not used), for a
-        fold whose quick estimate did not predict it."""
+        fold whose quick estimate did not predict it. ``joint``: the joint optimum's vector
+        and its RSS over the other runs; the iterations start there when the Gauss-Newton
+        estimate fits the other runs worse (a step along a direction the data leave nearly
+        flat, such as Spencer's node dashpot at its Bouc-Wen limit, can leave the basin)."""
         x = np.clip(v_gn[: self.npar], self.par.lower, self.par.upper)
         if HELDOUT_STEPS < 1 and not full:
             return x
@@ -584,6 +599,12 @@ class OutputErrorFitter:
             and abs(r0 @ r0 - rss_gn) < HELDOUT_GN_TRUST * self.data.noise_std**2
         ):
             return x
+        if joint is not None and not (np.all(np.isfinite(r0)) and r0 @ r0 <= joint[1]):
+            _, nu_j = self._split(joint[0])
+            x = np.asarray(joint[0][: self.npar], dtype=float)
+            v0 = np.concatenate([x, nu_j[train].ravel()])
+            with np.errstate(all="ignore"):
+                r0 = sub.residuals(v0)
         free = np.full(sub.nnu * len(train), np.inf)
         lo = np.concatenate([self.par.lower, -free])
         hi = np.concatenate([self.par.upper, free])
@@ -651,7 +672,7 @@ class OutputErrorFitter:
             keep = np.ones(len(res), dtype=bool)
             keep[rows] = False
             rss_gn = float(res[keep] @ res[keep] + 2 * go @ delta + delta @ Go @ delta)
-            xr = self._fold_refit(fold, vr, rss_gn)
+            xr = self._fold_refit(fold, vr, rss_gn, joint=(v, float(res[keep] @ res[keep])))
             out, st = self._predict_fold(xr, fold, nu)
             if any(st):
                 # the quick estimate can leave the stable region on its own: the fold is

@@ -14,6 +14,7 @@ from hystdisc.data import Dataset, estimate_noise, filter_windows
 from hystdisc.data.envelope import Envelope, RunEnvelope
 from hystdisc.discovery.differentiation import differentiate
 from hystdisc.fitting.measurement import delayed, measured_output, unfiltered_motion
+from hystdisc.fitting.motion_error import estimate_motion
 from hystdisc.models import TermModel
 from hystdisc.registry import get_experiment
 from hystdisc.simulation import simulate_driven_runs, simulate_mech, simulate_system
@@ -78,6 +79,28 @@ def _predict_system(model, runs, ders, exp) -> list[np.ndarray]:
     return out
 
 
+def signals(dataset: Dataset, exp) -> list:
+    """Each run's motion as a prediction takes it: a driven run's imposed motion and
+    velocity as the fit estimates them (a periodic run's harmonic series, else local fits:
+    :func:`~hystdisc.fitting.motion_error.estimate_motion`; the motion before a rig's
+    declared filter when the filter acts on ``theta``), else the smoothed angle and its
+    derivatives. Each item has ``theta``, ``theta_dot`` and ``theta_ddot``."""
+    runs = list(dataset.runs)
+    chans = tuple(dataset.filter["channels"]) if dataset.filter else ()
+    windows = filter_windows(dataset.filter, runs, dataset.source) if chans else [0] * len(runs)
+    out = []
+    for k, (r, w) in enumerate(zip(runs, windows, strict=True)):
+        noise = estimate_noise(r.theta, r.fs)
+        if exp.motion_imposed and np.ptp(r.theta) > 0:
+            d = estimate_motion(r.t, r.theta, noise, k)
+            if "theta" in chans and w > 1:  # the motion the damper saw, rebuilt
+                d.theta, d.theta_dot = unfiltered_motion(r.t, r.theta, w)
+        else:
+            d = differentiate(r.t, r.theta, noise)
+        out.append(d)
+    return out
+
+
 def predict_dataset(
     tm, dataset: Dataset, experiment: str | None = None, input_hold: str = "cubic"
 ) -> list[np.ndarray]:
@@ -97,18 +120,9 @@ def predict_dataset(
     """
     exp = get_experiment(experiment or dataset.experiment)
     runs = list(dataset.runs)
-    ders = []
-    for r in runs:
-        noise = estimate_noise(r.theta, r.fs)
-        ders.append(differentiate(r.t, r.theta, noise))
-    # the measurement chain: a declared filter (the motion the damper saw is rebuilt, the
-    # prediction averaged as the record was) and the model's channel delay
+    ders = signals(dataset, exp)
     chans = tuple(dataset.filter["channels"]) if dataset.filter else ()
     windows = filter_windows(dataset.filter, runs, dataset.source) if chans else [0] * len(runs)
-    if exp.motion_imposed and "theta" in chans:
-        for k, (r, w) in enumerate(zip(runs, windows, strict=True)):
-            if w > 1:
-                ders[k].theta, ders[k].theta_dot = unfiltered_motion(r.t, r.theta, w)
     out_windows = windows if exp.output in chans else [0] * len(runs)
     if isinstance(tm, TermModel):
         delay = float(tm.delay)

@@ -20,11 +20,13 @@ from hystdisc.data import (
     trim_release,
 )
 from hystdisc.data.conditions import detect_conditions
+from hystdisc.data.motion import motion_noise, pooled_motion_noise
 from hystdisc.data.noise import NoiseEstimate
 from hystdisc.discovery import EqData, differentiate
 from hystdisc.errors import HystdiscError
 from hystdisc.fitting.data import FitData
 from hystdisc.fitting.measurement import apply_filter
+from hystdisc.fitting.motion_error import estimate_motion, filter_estimate
 from hystdisc.fitting.outliers import screen_runs
 from hystdisc.registry import experiment_names, get_experiment
 from hystdisc.stats import samples_per_cycle
@@ -101,16 +103,28 @@ def prepare_data(
         input_hold,
     )
     windows = []
-    for r in runs:
-        d = differentiate(r.t, r.theta, theta_noise)
+    # driven: the measured motion is estimated (a harmonic series of a periodic run, else
+    # local fits), its noise and the estimate's errors carried to the intervals
+    motion = []
+    # a motion recorded through a declared filter: the fit's is reconstructed below, and
+    # the equation-error stage keeps the smoothed record, as before the estimates
+    filtered = dataset.filter is not None and "theta" in dataset.filter["channels"]
+    for k, r in enumerate(runs):
+        est = None
+        if exp.motion_imposed and np.ptp(r.theta) > 0:
+            est = estimate_motion(r.t, r.theta, theta_noise, k, motion_noise(r.t, r.theta))
+            motion.append(est)
+        d = est if est is not None and not filtered else differentiate(r.t, r.theta, theta_noise)
         windows.append(d.window)
         if not np.all(np.isfinite(d.theta_dot)) or np.ptp(r.theta) == 0:
             raise HystdiscError(
                 f"{dataset.source}, run {r.name}: the run never moves; fix: remove the run"
             )
         m = np.ones(r.t.size, dtype=bool)
-        m[: d.window // 2] = False
-        m[-(d.window // 2) or None :] = False
+        edge = getattr(d, "edge", d.window // 2)  # a smoother's one-sided ends
+        if edge > 0:
+            m[:edge] = False
+            m[-edge:] = False
         if exp.motion_imposed:
             # forget the unknown initial z: skip until the motion has swept its range once
             travel = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(d.theta)))])
@@ -136,6 +150,19 @@ def prepare_data(
     if dataset.filter is not None:  # the fit sees the damper through the rig's filter
         windows = filter_windows(dataset.filter, runs, dataset.source)
         apply_filter(fd, windows, dataset.filter["channels"], [r.theta for r in runs])
+        if motion and filtered:
+            motion = [
+                filter_estimate(est, r.t, r.theta, w) if w > 1 else est
+                for est, r, w in zip(motion, runs, windows, strict=True)
+            ]
+    if motion:
+        fd.motion_errors = motion
+        fd.motion_noise = pooled_motion_noise(
+            [r.name for r in runs], [r.t.size for r in runs], [est.noise for est in motion]
+        )
+        fd.motion_noise.estimates = {
+            r.name: est.summary() for r, est in zip(runs, motion, strict=True)
+        }
     if model.method == "quantization" and model.output_quantization:
         fd.quantum = float(model.output_quantization.step)
     given = [r.condition for r in runs]

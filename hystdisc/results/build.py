@@ -200,7 +200,8 @@ def build_results(disc: Any, dataset: Any) -> Results:
     ``terms_``, ``discovered_name_``, ``discovered_shape_``, ``stage1_`` (shape -> object
     with ``terms``, ``bic``, ``inclusion``), ``discovered_fit_``, ``family_fits_``,
     ``family_``, ``declared_``, ``equal_fits_``, ``fit_data_`` (its ``mask``, ``names``,
-    ``folds()``, ``heldout_by``), ``conditions_``, ``envelope_``, ``admissibility_``,
+    ``folds()``, ``heldout_by``, ``motion_noise``), ``conditions_``, ``envelope_``,
+    ``admissibility_``,
     ``final_admissibility_``, ``selection_note_``, ``single_current_``, ``currents_``,
     ``noise_`` (optional: the :class:`~hystdisc.data.NoiseEstimate`), ``outliers_`` (its
     ``to_dict()``), ``reselection_`` and ``reduction_`` (optional, their ``to_dict()``), ``loop_``
@@ -282,6 +283,9 @@ def build_results(disc: Any, dataset: Any) -> Results:
     if noise is not None:  # the measurement, modelled: how the noise was estimated
         data["noise"] = noise.to_dict()
         data["encoder"] = noise.encoder.to_dict() if noise.encoder is not None else None
+    motion = getattr(disc.fit_data_, "motion_noise", None)
+    if motion is not None:  # driven: the measured motion's noise, carried to the intervals
+        data["motion_noise"] = motion.to_dict()
     outliers = getattr(disc, "outliers_", None)
     if outliers is not None:  # the isolated glitches left out of the fits
         data["outliers"] = outliers.to_dict()

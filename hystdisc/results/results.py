@@ -177,6 +177,17 @@ class Results(Record):
         white noise; ``quantization``: the floor ``q / sqrt(12)`` of a quantized output),
         ``signal``, ``differences``, ``period``, ``quantization_floor`` and each run's
         estimates in ``runs`` (:meth:`hystdisc.data.NoiseEstimate.to_dict`).
+    motion_noise : dict or None
+        Driven experiments: the noise on the measured imposed motion, which enters the
+        fit and its intervals (errors in variables, :mod:`hystdisc.fitting.motion_error`):
+        ``std`` (pooled over the runs: the root of their sample-weighted mean variance),
+        ``method`` (most runs': ``cycle-to-cycle``, ``differences`` or ``quantization``),
+        ``runs`` (run name -> std), ``methods`` (run name -> method) and ``estimates``
+        (run name -> how the fit's motion was estimated: ``estimate`` ``harmonic``, a
+        least-squares Fourier series, ``smoother`` or ``filter``, the motion before a
+        declared filter; a tried harmonic fit's ``harmonics``, ``frequency`` and
+        ``residual``; ``note``: why the series was not used)
+        (:meth:`hystdisc.data.motion.MotionNoise.to_dict`); None (absent) otherwise.
     encoder : dict or None
         The lattice of the recorded angle, when it is quantized: ``step``,
         ``counts_per_revolution`` (``2 pi / step`` when whole), ``floor``
@@ -264,6 +275,7 @@ class Results(Record):
     current_dependence: dict[str, Any] | None = None
     current_laws: dict[str, Any] | None = None
     noise: dict[str, Any] | None = None
+    motion_noise: dict[str, Any] | None = None
     encoder: dict[str, Any] | None = None
     outliers: dict[str, Any] | None = None
     reselection: dict[str, Any] | None = None

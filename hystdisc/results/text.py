@@ -213,6 +213,9 @@ def measurement_lines(res: Results) -> list[str]:
             else ""
         )
         out.append(f"Measurement noise: {nz['std']:.3g} from {how}{other}")
+    motion = res.motion_noise or {}
+    if motion.get("std") is not None:  # driven: the imposed motion is measured too
+        out.append(_motion_line(motion))
     if enc:
         counts = enc.get("counts_per_revolution")
         what = f"{counts} counts per revolution, " if counts else ""
@@ -222,6 +225,30 @@ def measurement_lines(res: Results) -> list[str]:
             f"{enc['floor']:.3g}{used}"
         )
     return out
+
+
+def _motion_line(motion: dict) -> str:
+    """``Motion noise: ...``: its level, how it was estimated, how the motion was estimated
+    (and the first reason a run's harmonic series was not used)."""
+    kinds: dict[str, int] = {}
+    notes = []
+    for name, est in (motion.get("estimates") or {}).items():
+        kinds[est.get("estimate")] = kinds.get(est.get("estimate"), 0) + 1
+        if est.get("estimate") in ("local", "smoother") and est.get("note"):
+            notes.append(f"run {name}: {est['note']}")
+    line = f"Motion noise: {motion['std']:.3g} from {motion.get('method')}"
+    if kinds:
+        how = ", ".join(f"{n} {k}" for k, n in kinds.items())
+        carried = (
+            "not propagated: the declared filter hides the motion's noise"
+            if set(kinds) == {"filter"}
+            else "propagated to the intervals"
+        )
+        line += f"; motion estimated by {how} (its errors {carried})"
+    if notes:
+        more = f" (and {len(notes) - 1} more)" if len(notes) > 1 else ""
+        line += f"; {notes[0]}{more}"
+    return line
 
 
 def report(res: Results) -> str:
