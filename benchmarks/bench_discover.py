@@ -47,7 +47,8 @@ from threadpoolctl import threadpool_limits
 
 from hystdisc.data import Dataset, atomic_write_text, load
 from hystdisc.estimator import Discovery
-from hystdisc.fitting import FamilyParametrization, FitData, OutputErrorFitter
+from hystdisc.fitting import FamilyParametrization, OutputErrorFitter
+from hystdisc.measurement import FitData
 from hystdisc.models import RIG_PARAMS
 from hystdisc.results import Results
 

@@ -61,7 +61,8 @@ from bench_discover import machine_description, swarm_fit, user_bounds  # noqa: 
 
 from hystdisc.data import Dataset, atomic_write_text, load  # noqa: E402
 from hystdisc.estimator import Discovery  # noqa: E402
-from hystdisc.fitting import FamilyParametrization, FitData, OutputErrorFitter  # noqa: E402
+from hystdisc.fitting import FamilyParametrization, OutputErrorFitter  # noqa: E402
+from hystdisc.measurement import FitData
 from hystdisc.models import Model, get_family  # noqa: E402
 from hystdisc.registry import family_names  # noqa: E402
 from hystdisc.simulation.synth import generate  # noqa: E402

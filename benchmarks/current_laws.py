@@ -38,8 +38,9 @@ def nrmse(preds, fd) -> float:
 def main(argv=None) -> int:
     from hystdisc.data import load
     from hystdisc.estimator import Discovery
-    from hystdisc.fitting import FitData, OutputErrorFitter
-    from hystdisc.fitting.staged import joint_fit, predict_runs, staged_fit
+    from hystdisc.fitting import OutputErrorFitter
+    from hystdisc.measurement import FitData
+    from hystdisc.selection.staged import joint_fit, predict_runs, staged_fit
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", default=os.environ.get("HYSTDISC_DATA", "../shared/data"))

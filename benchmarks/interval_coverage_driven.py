@@ -179,11 +179,12 @@ def fit_variant(family: str, params: dict, ds, variant: str, discover: bool) -> 
     from threadpoolctl import threadpool_limits
 
     import hystdisc.fitting.motion_error as me
+    import hystdisc.measurement.motion as mm
     from hystdisc.estimator import Discovery
     from hystdisc.fitting import FamilyParametrization, OutputErrorFitter
-    from hystdisc.fitting.prepare import prepare_data
+    from hystdisc.measurement.prepare import prepare_data
 
-    me.MOTION, me.PROPAGATE = VARIANTS[variant]
+    mm.MOTION, me.PROPAGATE = VARIANTS[variant]
     truth = stress.normalized_truth(family, params)
     c0 = time.process_time()
     with threadpool_limits(limits=1), np.errstate(all="ignore"):

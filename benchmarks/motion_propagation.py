@@ -47,7 +47,7 @@ def run(family: str, motion: float, force: float, draws: int, ramp: bool) -> tup
     import hystdisc.fitting.motion_error as me
     from hystdisc.fitting import OutputErrorFitter
     from hystdisc.fitting.parametrization import family_parametrization
-    from hystdisc.fitting.prepare import prepare_data
+    from hystdisc.measurement.prepare import prepare_data
     from hystdisc.models import Model
     from hystdisc.registry import get_family
     from hystdisc.simulation.synth import generate

@@ -13,7 +13,7 @@ physically admissible parameters. The candidates are the families that are admis
 (they dissipate energy and their spring stiffens over twice the training envelope; all
 families when none is) and whose held-out error (leave one test condition out, or one
 run) is not clearly worse than the best one's; among them the lowest BIC wins, ties
-resolved towards the fewest parameters (:func:`~hystdisc.fitting.selection.select_family`).
+resolved towards the fewest parameters (:func:`~hystdisc.selection.families.select_family`).
 When BIC alone would have chosen another family, ``selection_note_`` says so; when the
 loop accepts effects with a term form, the families are compared again with them
 (``reselection_``, :mod:`hystdisc.closing.reselect`); when the selected family's
@@ -47,6 +47,7 @@ import numpy as np
 from sklearn.base import BaseEstimator, clone
 from threadpoolctl import threadpool_limits
 
+from hystdisc.apply import predict_dataset
 from hystdisc.closing import LoopResult, close_loop
 from hystdisc.closing.again import compare_again
 from hystdisc.closing.measured import add_to_fits
@@ -73,17 +74,7 @@ from hystdisc.discovery import (
 from hystdisc.discovery.delay import scan_delay
 from hystdisc.errors import HystdiscError, HystdiscWarning
 from hystdisc.faults import Failures
-from hystdisc.fitting import (
-    MIN_STAGED_LEVELS,
-    FamilyParametrization,
-    FitData,
-    OEFit,
-    OutputErrorFitter,
-    TermParametrization,
-    confirm_glitches,
-    predict_dataset,
-    staged_fit,
-)
+from hystdisc.fitting import FamilyParametrization, OEFit, OutputErrorFitter, TermParametrization
 from hystdisc.fitting.multistart import (
     best_of_starts,
     drop_diverged,
@@ -95,12 +86,14 @@ from hystdisc.fitting.multistart import (
     term_starts,
 )
 from hystdisc.fitting.parametrization import z_scale
-from hystdisc.fitting.prepare import prepare_data
-from hystdisc.fitting.selection import select_family
-from hystdisc.fitting.staged import levels_start
+from hystdisc.measurement import FitData, confirm_glitches
+from hystdisc.measurement.prepare import prepare_data
 from hystdisc.models import FAMILIES, format_equation, get_family
 from hystdisc.registry import family_names, get_experiment
 from hystdisc.results import build_results
+from hystdisc.selection import MIN_STAGED_LEVELS, staged_fit
+from hystdisc.selection.families import select_family
+from hystdisc.selection.staged import levels_start
 from hystdisc.simulation.admissibility import check_admissible
 from hystdisc.simulation.parallel import limit_threads, map_tasks, map_tasks_after
 
@@ -172,7 +165,7 @@ class Discovery(BaseEstimator):
         default: the usable CPUs, at most :data:`MAX_THREADS`. The results do not depend
         on it.
     staged : bool
-        After the selection, the seed's flowchart (:mod:`hystdisc.fitting.staged`): the
+        After the selection, the seed's flowchart (:mod:`hystdisc.selection.staged`): the
         selected family fitted at each current level, each current law chosen by leaving
         one level out, the joint fit with the chosen laws (``staged_``; needs 3 levels);
         a chosen law that is not linear is carried into the final model.
@@ -252,7 +245,7 @@ class Discovery(BaseEstimator):
     final_admissibility_ : Admissibility
         The final model's admissibility (a loud warning when it fails).
     outliers_ : Outliers
-        The isolated glitches of the measured signals (:mod:`hystdisc.fitting.outliers`):
+        The isolated glitches of the measured signals (:mod:`hystdisc.measurement.outliers`):
         left out of every fit, reported under ``outliers`` in ``results.json``.
     staged_ : StagedFit or None
         The staged fit (``staged=True`` and 3 current levels or more), else None; its
@@ -546,9 +539,10 @@ class Discovery(BaseEstimator):
         # a delay between the recorded channels enters every family before they are
         # compared: compared without it, the one that best absorbs the lag would win
         self.delay_scan_ = None
-        if exp.motion_imposed:
-            self.delay_scan_ = failures.guard("delay scan", scan_delay, eq, best.terms, best.s,
-                                              best.shape, fd.t, fd.y)  # fmt: skip
+        if exp.motion_imposed and not any(fd.run_filters()):  # (stage 1 sees no filter)
+            self.delay_scan_ = failures.guard(
+                "delay scan", scan_delay, eq, best.terms, best.s, best.shape
+            )
         if self.delay_scan_ is not None and self.delay_scan_.found:
             say(f"stage 2: a channel delay of {self.delay_scan_.tau:.3g} s enters every family")
             measured_effects.append("channel_delay")
@@ -566,8 +560,15 @@ class Discovery(BaseEstimator):
         def starts_of(name, first, mapper):
             pars = []
             n = max(int(self.n_starts), 1)
-            for label, start in term_starts(eq, name, n, self.seed, self._shape0(name),
-                                            self.single_current_, first.par.params(first.par.x0)):
+            for label, start in term_starts(
+                eq,
+                name,
+                n,
+                self.seed,
+                self._shape0(name),
+                self.single_current_,
+                first.par.params(first.par.x0),
+            ):
                 pars.append((label, family_par(name, start)))
             if (lv := levels_start(fd, first.par, first.params)) is not None:
                 pars.append(("current levels", first.par.like(lv, first.par.effects)))
@@ -799,7 +800,7 @@ class Discovery(BaseEstimator):
 
     def _select(self) -> tuple[str, str | None]:
         """The selected family and, when BIC alone would have chosen another, why not
-        (:func:`~hystdisc.fitting.selection.select_family` on the family table)."""
+        (:func:`~hystdisc.selection.families.select_family` on the family table)."""
         return select_family(self.family_fits_, self.admissibility_)
 
     def _check_fitted(self):

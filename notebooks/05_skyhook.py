@@ -32,7 +32,7 @@ import control as ct
 import numpy as np
 
 from hystdisc import Discovery, Model, generate
-from hystdisc.fitting.control import (
+from hystdisc.apply.control import (
     SOLVE_IVP_KWARGS,
     closed_loop,
     driven_inputs,
@@ -82,7 +82,7 @@ print(d.results_.parameter_table())
 #
 # `Results.to_control()` gives the damper alone: inputs `theta, theta_dot` (the motion
 # across it) and `current`, output `torque`, and the model's own states (Spencer's
-# stretch `d` of the Bouc-Wen element and its `z`). `hystdisc.fitting.control.load_control`
+# stretch `d` of the Bouc-Wen element and its `z`). `hystdisc.apply.control.load_control`
 # does the same from a `results.json`. Fed the motion `hystdisc predict` imposes
 # (`driven_inputs`), it gives the predicted torque (the tests hold them to 1e-6 of the
 # peak).

@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 from hystdisc import registry
+from hystdisc.apply.predict import predict_dataset
 from hystdisc.closing import (
     EFFECT_BIC_MARGIN,
     assess_residual,
@@ -25,8 +26,8 @@ from hystdisc.closing import (
 from hystdisc.data import Dataset, Run
 from hystdisc.discovery import FAMILY_SHAPE
 from hystdisc.estimator import Discovery
-from hystdisc.fitting import FamilyParametrization, FitData
-from hystdisc.fitting.predict import predict_dataset
+from hystdisc.fitting import FamilyParametrization
+from hystdisc.measurement import FitData
 from hystdisc.models import EFFECTS, Model
 from hystdisc.results import Results
 from hystdisc.simulation.synth import generate

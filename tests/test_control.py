@@ -20,14 +20,14 @@ import pytest
 ct = pytest.importorskip("control")
 
 from hystdisc import Discovery  # noqa: E402
-from hystdisc.errors import HystdiscError  # noqa: E402
-from hystdisc.fitting.control import (  # noqa: E402
+from hystdisc.apply.control import (  # noqa: E402
     SOLVE_IVP_KWARGS,
     damper_model,
     driven_inputs,
     to_control,
 )
-from hystdisc.fitting.predict import predict_dataset  # noqa: E402
+from hystdisc.apply.predict import predict_dataset  # noqa: E402
+from hystdisc.errors import HystdiscError  # noqa: E402
 from hystdisc.models import Model  # noqa: E402
 from hystdisc.models.families.spencer import SPENCER  # noqa: E402
 from hystdisc.models.wheel import TermsOnCompliantMount, TermsOnCompliantWheel  # noqa: E402

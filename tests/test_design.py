@@ -22,12 +22,12 @@ import json
 import numpy as np
 import pytest
 
+from hystdisc.apply.predict import predict_dataset
 from hystdisc.cli import main
 from hystdisc.data import Dataset
 from hystdisc.design import DesignResult, RunSpec, design, expected_widths
 from hystdisc.errors import HystdiscError
 from hystdisc.estimator import Discovery
-from hystdisc.fitting.predict import predict_dataset
 from hystdisc.results import Results
 from hystdisc.simulation.synth import generate, write_dataset
 

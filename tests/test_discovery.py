@@ -167,7 +167,7 @@ def test_results_contract_and_predict_roundtrip(committed, tmp_path):
     assert back.summary() == res
     # predict fresh runs of the true model through the saved results
     fresh = generate(Model("dahl"), currents=(0.3, 0.8), duration=4, noise=1e-3, seed=21)
-    from hystdisc.fitting.predict import predict_dataset
+    from hystdisc.apply.predict import predict_dataset
 
     preds = predict_dataset(back.term_model(), fresh)
     rms = np.sqrt(

@@ -22,7 +22,8 @@ from sklearn.utils import estimator_checks as checks
 import hystdisc
 from hystdisc.closing import LoopResult
 from hystdisc.estimator import Discovery
-from hystdisc.fitting import FitData, OEFit
+from hystdisc.fitting import OEFit
+from hystdisc.measurement import FitData
 from hystdisc.models import Model
 from hystdisc.simulation.synth import generate
 

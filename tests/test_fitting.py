@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from hystdisc.errors import HystdiscError
-from hystdisc.fitting import FamilyParametrization, FitData, OutputErrorFitter, levenberg_marquardt
+from hystdisc.fitting import FamilyParametrization, OutputErrorFitter, levenberg_marquardt
+from hystdisc.measurement import FitData
 from hystdisc.models import Model
 from hystdisc.simulation.synth import generate
 

@@ -10,11 +10,11 @@ from hystdisc.data import Dataset
 from hystdisc.errors import HystdiscError
 from hystdisc.estimator import Discovery
 from hystdisc.fitting import FamilyParametrization
-from hystdisc.fitting.laws import choose_law, fit_law, law_value
-from hystdisc.fitting.staged import heldout_level, staged_fit
 from hystdisc.models import Model
 from hystdisc.report import render_report
 from hystdisc.results import Results
+from hystdisc.selection.laws import choose_law, fit_law, law_value
+from hystdisc.selection.staged import heldout_level, staged_fit
 from hystdisc.simulation.synth import generate
 
 CURRENTS = (0.0, 0.25, 0.5, 0.75, 1.0)
@@ -190,7 +190,7 @@ def test_results_json_and_predict_reproduce_the_final_model(saturating_case, tmp
     # the prediction is the saturating model's: at the noise on every run, where the
     # linear laws' model is not
     e = np.concatenate([p - r.torque for p, r in zip(ours, data.runs, strict=True)])
-    from hystdisc.fitting.predict import predict_dataset
+    from hystdisc.apply.predict import predict_dataset
 
     lin = predict_dataset(st.linear.model, data, "driven")
     e_lin = np.concatenate([p - r.torque for p, r in zip(lin, data.runs, strict=True)])
@@ -301,8 +301,8 @@ def test_spencer_staged_carries_a_saturating_law_into_results_and_predict():
     predict reproduce it."""
     import warnings
 
+    from hystdisc.apply.predict import predict_dataset
     from hystdisc.errors import HystdiscWarning
-    from hystdisc.fitting.predict import predict_dataset
 
     truth = {
         **{"alpha_a": 0.4, "alpha_b": 3.0, "alpha_i0": 0.3, "c0_a": 0.3, "c0_b": 0.5},

@@ -18,7 +18,7 @@ from hystdisc.closing import candidate_effects
 from hystdisc.data import Dataset, Run
 from hystdisc.discovery import FAMILY_SHAPE
 from hystdisc.estimator import Discovery
-from hystdisc.fitting.measurement import (
+from hystdisc.measurement.chain import (
     average_response,
     causal_average,
     delayed,

@@ -13,13 +13,14 @@ import pytest
 from threadpoolctl import threadpool_limits
 
 import hystdisc.fitting.motion_error as me
+import hystdisc.measurement.motion as mm
 from hystdisc.data import Dataset, Run
 from hystdisc.data.motion import fit_harmonics, motion_noise
 from hystdisc.data.rigs import normalize_rig
 from hystdisc.estimator import Discovery
 from hystdisc.fitting import FamilyParametrization, OutputErrorFitter
-from hystdisc.fitting.measurement import causal_average
-from hystdisc.fitting.prepare import prepare_data
+from hystdisc.measurement.chain import causal_average
+from hystdisc.measurement.prepare import prepare_data
 from hystdisc.models import Model
 from hystdisc.simulation.runs import simulate_driven_runs
 from hystdisc.simulation.synth import generate
@@ -126,11 +127,11 @@ def test_harmonic_velocity_is_unbiased():
     _, fd, _, _ = prepare_data(ds)
     for k in (6, 7, 8):  # 0.05 rad at 5 Hz
         assert abs(gain(fd.theta_dot[k], ds.runs[k].theta_dot) - 1) < 1e-4
-    me.MOTION = "legacy"
+    mm.MOTION = "legacy"
     try:
         _, old, _, _ = prepare_data(ds)
     finally:
-        me.MOTION = "auto"
+        mm.MOTION = "auto"
     assert abs(gain(old.theta_dot[6], ds.runs[6].theta_dot) - 1) > 2e-3
 
 

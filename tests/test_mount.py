@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 
 from hystdisc import Discovery
+from hystdisc.apply.predict import predict_dataset
 from hystdisc.closing.structural import mount_starts
-from hystdisc.fitting.predict import predict_dataset
 from hystdisc.models import Model
 from hystdisc.models.wheel import TermsOnCompliantMount
 from hystdisc.results import Results

@@ -24,9 +24,9 @@ from hystdisc.fitting.multistart import (
     random_starts,
     start_rss,
 )
-from hystdisc.fitting.staged import levels_start
 from hystdisc.models import Model
 from hystdisc.registry import get_family
+from hystdisc.selection.staged import levels_start
 from hystdisc.simulation.synth import generate
 
 DAHL = {"k_x": 0.45, "k_wa": 0.7, "k_wb": 1.6, "rho": 30.0, "k_s": 135.0}

@@ -11,7 +11,7 @@ import pytest
 from hystdisc import Discovery
 from hystdisc.cli import main
 from hystdisc.data import estimate_noise, read_csv
-from hystdisc.fitting.outliers import find_glitches
+from hystdisc.measurement.outliers import find_glitches
 from hystdisc.registry import family_names
 from hystdisc.simulation.synth import generate
 

@@ -17,7 +17,7 @@ from hystdisc.cli import main
 from hystdisc.closing.reselect import Reselection, refit_families, term_effects
 from hystdisc.data import load
 from hystdisc.discovery import FAMILY_SHAPE
-from hystdisc.fitting.selection import select_family
+from hystdisc.selection.families import select_family
 from hystdisc.simulation.admissibility import check_admissible
 
 TRUTH = "alpha_1=0.7,alpha_2=1.1,c_1=0.35,c_2=0.8,beta=14,gamma=7,n=1.5,k_s=190"
@@ -116,7 +116,14 @@ def test_the_loops_final_model_stands_for_its_family_when_its_refit_fits_worse(m
 
     def fit(bic, heldout, n_params=10):
         par = NS(effects=("offset",))
-        return NS(bic=bic, heldout_rms=heldout, n_params=n_params, par=par, term_part=None)
+        return NS(
+            bic=bic,
+            heldout_rms=heldout,
+            n_params=n_params,
+            par=par,
+            term_part=None,
+            is_system=False,
+        )
 
     final = fit(-1000.0, 1.0e-3)
     final.params, final.term_part = {"theta_off": 0.03}, NS(torque={})

@@ -18,14 +18,10 @@ import pytest
 
 from hystdisc.data import load
 from hystdisc.errors import HystdiscError
-from hystdisc.fitting import (
-    FamilyParametrization,
-    FitData,
-    OutputErrorFitter,
-    SystemParametrization,
-)
+from hystdisc.fitting import FamilyParametrization, OutputErrorFitter, SystemParametrization
 from hystdisc.fitting import simulate as fit_simulate
 from hystdisc.fitting.jacobian import exact_jacobian
+from hystdisc.measurement import FitData
 from hystdisc.models import Model
 from hystdisc.models.compiled import base_coefficients
 from hystdisc.models.wheel import BeamOnCompliantWheel

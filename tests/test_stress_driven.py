@@ -22,7 +22,7 @@ from stress_common import Z95, joint_z  # noqa: E402
 
 from hystdisc.cli import main  # noqa: E402
 from hystdisc.data import load  # noqa: E402
-from hystdisc.fitting.measurement import causal_average  # noqa: E402
+from hystdisc.measurement.chain import causal_average  # noqa: E402
 
 
 @pytest.fixture(scope="module")

@@ -124,7 +124,7 @@ def test_round_significant_and_write_dataset(tmp_path):
 def test_prefilter_is_the_rigs_moving_average(tmp_path):
     # the filter a rig's [filter] table declares, as the fit applies it
     from hystdisc.cli import main
-    from hystdisc.fitting.measurement import causal_average
+    from hystdisc.measurement.chain import causal_average
 
     kw = dict(currents=(0, 1), duration=2.0, fs=500, drives=["0.1@2"], noise=0.01, seed=3)
     kw["theta_noise"] = 1e-4

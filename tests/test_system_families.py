@@ -10,8 +10,8 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from hystdisc import Discovery
+from hystdisc.apply.predict import predict_dataset
 from hystdisc.errors import HystdiscWarning
-from hystdisc.fitting.predict import predict_dataset
 from hystdisc.models import Model
 from hystdisc.models.families.spencer import SPENCER
 from hystdisc.results import Results

@@ -9,9 +9,9 @@ import pytest
 from hystdisc.fitting import FamilySystemParametrization
 from hystdisc.fitting import simulate as sim
 from hystdisc.fitting import system_jacobian as sj
-from hystdisc.fitting.data import FitData
 from hystdisc.fitting.output_error import OutputErrorFitter
 from hystdisc.fitting.system_sensitivity import exact_applies, system_exact_jacobian
+from hystdisc.measurement.fitdata import FitData
 from hystdisc.models import Model
 from hystdisc.simulation.ode import simulate_lockstep, simulate_system
 from hystdisc.simulation.sensitivity_ode import simulate_system_sensitivities

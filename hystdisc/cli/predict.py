@@ -64,8 +64,8 @@ def run(args: argparse.Namespace) -> int:
     """Execute ``hystdisc predict``."""
     import numpy as np
 
+    from hystdisc.apply.predict import beyond_envelope, predict_dataset
     from hystdisc.data import atomic_write_text
-    from hystdisc.fitting.predict import beyond_envelope, predict_dataset
     from hystdisc.results import Results
     from hystdisc.simulation import HOLDS
 

@@ -90,10 +90,10 @@ from hystdisc.faults import Failures, reason_of
 from hystdisc.fitting import (
     FamilyParametrization,
     FamilySystemParametrization,
-    FitData,
     OEFit,
     OutputErrorFitter,
 )
+from hystdisc.measurement import FitData
 from hystdisc.models import EFFECTS
 from hystdisc.simulation.admissibility import check_admissible
 from hystdisc.stats import masked, sampling_rate

@@ -12,7 +12,7 @@ with a parameter more than the data ask for.
 When every parameter of a reduction has its 95 % interval around the reduction's value,
 :func:`reduce_family` fits the smaller family with the reduction's effects (and the term
 effects the loop accepted), and, when the family table's rule
-(:func:`~hystdisc.fitting.selection.select_family`: admissible, held-out error, BIC)
+(:func:`~hystdisc.selection.families.select_family`: admissible, held-out error, BIC)
 prefers that fit, closes the loop again from the smaller family's table fit and applies
 the same rule to the two final models; the smaller model is selected only when the rule
 picks it there too. A parameter whose interval excludes the value (a LuGre damper whose

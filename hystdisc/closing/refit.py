@@ -16,7 +16,8 @@ import numpy as np
 from hystdisc.closing.scores import EffectScore, with_effects
 from hystdisc.data import distinct_currents
 from hystdisc.discovery import family_start
-from hystdisc.fitting import FitData, OEFit, OutputErrorFitter
+from hystdisc.fitting import OEFit, OutputErrorFitter
+from hystdisc.measurement import FitData
 from hystdisc.models import EFFECTS, Z_TORQUE_TERMS
 from hystdisc.stats import bic_change
 

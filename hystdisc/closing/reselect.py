@@ -16,7 +16,7 @@ effects and from the family's own optimum with the effects at the loop's values,
 judged on held-out data; the loop's own final model stands for the selected family when
 it fits better than that family's refit, since the loop may have reached it from more
 starts, e.g. an offset restarted on the shifted angle) and picks one by the family
-table's rule (:func:`~hystdisc.fitting.selection.select_family`: admissible, held-out
+table's rule (:func:`~hystdisc.selection.families.select_family`: admissible, held-out
 error, BIC);
 when that is another family, the loop is closed again from that family's fit, and the
 switch is kept only when the same rule, applied to the two final models, selects the new
@@ -34,9 +34,10 @@ import numpy as np
 
 from hystdisc.closing.refit import candidate_effects, refit_with, stage1_start
 from hystdisc.closing.residual import NOISE_RATIO
-from hystdisc.fitting import FitData, OEFit
-from hystdisc.fitting.selection import select_family
+from hystdisc.fitting import OEFit
+from hystdisc.measurement import FitData
 from hystdisc.models import EFFECTS
+from hystdisc.selection.families import select_family
 from hystdisc.simulation.admissibility import check_admissible
 
 
@@ -236,7 +237,7 @@ def reselect(
 
     Every family is refitted with them (:func:`refit_families`; ``before``'s refit gives
     way to ``loop``'s final model when that has the same effects and a lower BIC) and the
-    usual rule picks one (:func:`~hystdisc.fitting.selection.select_family`). When that
+    usual rule picks one (:func:`~hystdisc.selection.families.select_family`). When that
     is another family, the loop is closed again from its fit (``ctx.close``), and the
     switch is made (``switched``) only when the same rule, applied to the new final model
     and ``loop``'s, selects the new one and it is admissible.
@@ -324,7 +325,7 @@ def effect_values(final: OEFit, effects: Sequence[str]) -> dict[str, float]:
 
 
 def judge(fits: Mapping[str, OEFit], envelope: Any) -> tuple[str, dict[str, Any]]:
-    """The family table's rule (:func:`~hystdisc.fitting.selection.select_family`) on
+    """The family table's rule (:func:`~hystdisc.selection.families.select_family`) on
     ``fits`` (final models: a state-space one judged as a system), with each one's
     admissibility."""
     adm = {n: check_admissible(_admissible_form(f), envelope) for n, f in fits.items()}

@@ -24,7 +24,8 @@ from hystdisc.closing.diagnostics import (
     residual_spectrum,
     spectral_peak,
 )
-from hystdisc.fitting import FitData, OEFit
+from hystdisc.fitting import OEFit
+from hystdisc.measurement import FitData
 from hystdisc.registry import get_experiment
 
 #: A final residual whose RMS exceeds the noise estimate by this factor is "clearly above".

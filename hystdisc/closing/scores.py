@@ -22,7 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hystdisc.fitting import FitData, OEFit, OutputErrorFitter
+from hystdisc.fitting import OEFit, OutputErrorFitter
+from hystdisc.measurement import FitData
 from hystdisc.models import EFFECTS, SIGN_EPS, TORQUE_TERMS, TermModel
 from hystdisc.registry import get_experiment
 from hystdisc.simulation import integrate_z

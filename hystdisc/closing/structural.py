@@ -57,7 +57,8 @@ from hystdisc.closing.diagnostics import (
 from hystdisc.closing.refit import EFFECT_BIC_MARGIN
 from hystdisc.closing.residual import natural_frequency
 from hystdisc.closing.scores import EffectScore
-from hystdisc.fitting import FitData, OEFit, OutputErrorFitter
+from hystdisc.fitting import OEFit, OutputErrorFitter
+from hystdisc.measurement import FitData
 from hystdisc.models import EFFECTS
 from hystdisc.stats import bic_change, masked, sampling_rate
 

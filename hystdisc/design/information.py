@@ -28,11 +28,11 @@ from hystdisc.design.runs import RunSpec
 from hystdisc.errors import HystdiscError
 from hystdisc.fitting import (
     FamilySystemParametrization,
-    FitData,
     OutputErrorFitter,
     Parametrization,
     family_parametrization,
 )
+from hystdisc.measurement import FitData
 from hystdisc.models import get_family
 from hystdisc.registry import get_experiment
 from hystdisc.results import Results

@@ -19,10 +19,10 @@ from collections.abc import Callable, Iterator
 
 import numpy as np
 
-from hystdisc.fitting.data import FitData
-from hystdisc.fitting.measurement import measured_output
 from hystdisc.fitting.parametrization import Parametrization
 from hystdisc.fitting.simulate import kernel_vectors, simulate_sensitivities
+from hystdisc.measurement.chain import measured_output
+from hystdisc.measurement.fitdata import FitData
 from hystdisc.models import TermModel
 from hystdisc.simulation.sensitivity import DIR_TH0, DIR_W0, DIR_Z0
 

@@ -50,9 +50,9 @@ import numpy as np
 from hystdisc.discovery import family_starts
 from hystdisc.errors import HystdiscError
 from hystdisc.faults import Failures
-from hystdisc.fitting.data import FitData
 from hystdisc.fitting.output_error import OEFit, OutputErrorFitter
 from hystdisc.fitting.parametrization import FamilySystemParametrization, Parametrization
+from hystdisc.measurement.fitdata import FitData
 from hystdisc.models import EFFECTS, FAMILIES, RIG_PARAMS, get_family
 
 #: Levenberg-Marquardt iterations of each start before the best is continued.

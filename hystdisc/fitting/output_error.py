@@ -35,7 +35,6 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from hystdisc.errors import HystdiscError
-from hystdisc.fitting.data import FitData
 from hystdisc.fitting.jacobian import difference_jacobian, exact_jacobian
 from hystdisc.fitting.lm import levenberg_marquardt
 from hystdisc.fitting.motion_error import motion_covariance
@@ -43,6 +42,7 @@ from hystdisc.fitting.parametrization import Parametrization, SystemParametrizat
 from hystdisc.fitting.quantized import quantization_information_by_dwell
 from hystdisc.fitting.system_jacobian import lockstep_applies, system_jacobian
 from hystdisc.fitting.system_sensitivity import exact_applies, system_exact_jacobian
+from hystdisc.measurement.fitdata import FitData
 from hystdisc.models import TermModel
 from hystdisc.stats import bic as _bic
 

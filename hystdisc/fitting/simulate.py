@@ -5,7 +5,7 @@ one compiled call (the seed's families, effects, discovered structures);
 :func:`simulate_systems` runs any :class:`~hystdisc.models.system.StateSpaceModel` with
 the error-controlled integrator. Both return each entry's predicted output as the
 acquisition records it (a channel delay and a declared filter applied:
-:func:`~hystdisc.fitting.measurement.measured_output`), with a diverged entry's non-finite
+:func:`~hystdisc.measurement.chain.measured_output`), with a diverged entry's non-finite
 samples replaced by a large finite value the optimizer backs away from.
 :func:`simulate_sensitivities` runs one term model with the exact derivatives of its
 output (the output-error Jacobian).
@@ -18,8 +18,8 @@ from collections.abc import Mapping
 import numpy as np
 
 from hystdisc.errors import HystdiscError
-from hystdisc.fitting.data import FitData
-from hystdisc.fitting.measurement import delayed, measured_output
+from hystdisc.measurement.chain import delayed, measured_output
+from hystdisc.measurement.fitdata import FitData
 from hystdisc.models import TermModel
 from hystdisc.models.compiled import N_BASE, base_coefficients
 from hystdisc.models.system import StateSpaceModel
@@ -216,7 +216,7 @@ def simulate_sensitivities(
     outputs : list of ndarray
         Each run's simulated output before the measurement chain (the model's ``theta``,
         or a driven run's torque, its channel delay in the motion it was driven by;
-        :func:`~hystdisc.fitting.measurement.measured_output` is linear in it at a fixed
+        :func:`~hystdisc.measurement.chain.measured_output` is linear in it at a fixed
         delay).
     sensitivities : list of ndarray
         Each run's derivatives of the output, shape ``(samples, len(act))``.

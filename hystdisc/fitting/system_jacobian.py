@@ -16,7 +16,7 @@ run's output and all its columns.
 The columns follow :meth:`~hystdisc.fitting.output_error.OutputErrorFitter.jacobian`
 exactly: the same steps, a step flipped below a parameter at its upper bound, masked rows
 left out, a run's initial-state columns zero outside its rows, the output as the
-acquisition records it (:func:`~hystdisc.fitting.measurement.measured_output`, applied to
+acquisition records it (:func:`~hystdisc.measurement.chain.measured_output`, applied to
 each copy with its own channel delay, so a delay parameter gets an ordinary forward
 difference of the delayed output). A run whose nominal diverges is differenced as before
 (separate simulations, the diverged samples replaced by a large value).
@@ -34,9 +34,9 @@ from __future__ import annotations
 import numpy as np
 
 import hystdisc.fitting.simulate as _sim
-from hystdisc.fitting.data import FitData
-from hystdisc.fitting.measurement import measured_output
 from hystdisc.fitting.parametrization import Parametrization, SystemParametrization
+from hystdisc.measurement.chain import measured_output
+from hystdisc.measurement.fitdata import FitData
 from hystdisc.simulation.ode import simulate_lockstep
 
 #: How the Jacobian of a state-space model is computed: ``"lockstep"`` (this module) or

@@ -23,9 +23,9 @@ from __future__ import annotations
 import numpy as np
 
 import hystdisc.fitting.simulate as _sim
-from hystdisc.fitting.data import FitData
 from hystdisc.fitting.jacobian import map_stencil, measured_columns
 from hystdisc.fitting.parametrization import Parametrization, SystemParametrization
+from hystdisc.measurement.fitdata import FitData
 from hystdisc.simulation.parallel import map_entries
 from hystdisc.simulation.sensitivity_ode import has_sensitivities, simulate_system_sensitivities
 

@@ -10,7 +10,7 @@ from matplotlib.figure import Figure
 
 from hystdisc.plotting.base import fill_doc, new_axes
 
-#: Axis labels of the closed-loop signals (:func:`hystdisc.fitting.control.closed_loop`).
+#: Axis labels of the closed-loop signals (:func:`hystdisc.apply.control.closed_loop`).
 SIGNAL_LABELS = {
     "beam": "beam angle [rad]",
     "beam_dot": "beam velocity [rad/s]",

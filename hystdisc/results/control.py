@@ -1,6 +1,6 @@
 """The damper of a ``results.json`` as a python-control system (:func:`load_control`).
 
-The export itself is :func:`hystdisc.fitting.control.to_control`;
+The export itself is :func:`hystdisc.apply.control.to_control`;
 :meth:`hystdisc.results.Results.to_control` does the same on a results object.
 
 Examples
@@ -40,7 +40,7 @@ def load_control(path: str | Path, family: str | None = None, name: str = "dampe
     -------
     control.NonlinearIOSystem
         Inputs ``theta, theta_dot, current``, output ``torque``, the model's states
-        (:func:`hystdisc.fitting.control.to_control`).
+        (:func:`hystdisc.apply.control.to_control`).
 
     Raises
     ------

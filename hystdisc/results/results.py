@@ -495,7 +495,7 @@ class Results(Record):
         Inputs ``theta, theta_dot, current`` (the motion across the damper and the coil
         current), output ``torque``, the model's own states; the rig, the measurement
         chain and the rig's structure are not part of it
-        (:func:`hystdisc.fitting.control.to_control`).
+        (:func:`hystdisc.apply.control.to_control`).
 
         Parameters
         ----------
@@ -514,7 +514,7 @@ class Results(Record):
         HystdiscError
             When there is no such fit, it is not exportable, or python-control is absent.
         """
-        from hystdisc.fitting.control import to_control
+        from hystdisc.apply.control import to_control
 
         return to_control(self.simulation_model(family), self.experiment or "driven", name)
 

@@ -11,7 +11,7 @@
    UTFSM damper the exponent ``n`` then wanders from 0.4 at 0 A to 4.6 at 1 A and the
    law parameters absorb the shape's changes (``benchmarks/results/current_laws.md``).
 2. Each law parameter's law is chosen among linear, quadratic and saturating by leaving
-   one level out (:func:`hystdisc.fitting.laws.choose_law`): the law fitted to the other
+   one level out (:func:`hystdisc.selection.laws.choose_law`): the law fitted to the other
    levels, weighted by their intervals, predicts the left-out level's value. This is
    cheap (no simulation) and it is a held-out judgment of exactly what a law claims: the
    value at a current the law did not see.
@@ -36,8 +36,11 @@ import numpy as np
 
 from hystdisc.data import distinct_currents
 from hystdisc.errors import HystdiscError
-from hystdisc.fitting.data import FitData
-from hystdisc.fitting.laws import (
+from hystdisc.fitting.output_error import OEFit, OutputErrorFitter
+from hystdisc.fitting.parametrization import FamilyParametrization, FamilySystemParametrization
+from hystdisc.measurement.fitdata import FitData
+from hystdisc.models import EFFECTS
+from hystdisc.selection.laws import (
     LAWS,
     MIN_LEVELS,
     choose_law,
@@ -45,8 +48,6 @@ from hystdisc.fitting.laws import (
     floored_se,
     law_names,
 )
-from hystdisc.fitting.output_error import OEFit, OutputErrorFitter
-from hystdisc.fitting.parametrization import FamilyParametrization, FamilySystemParametrization
 
 #: Current levels the staged fit needs (a law through two points is not judged).
 MIN_STAGED_LEVELS = 3
@@ -85,7 +86,7 @@ class StagedFit:
         Law name -> ``{"parameter", "slope", "values", "ci95", "stderr", "law", "coefs",
         "candidates"}``: the passive parameter and its slope, its per-level values and
         intervals, the chosen law, its coefficients (``a``, ``b``, ``q`` or ``i0``) and
-        each candidate's leave-one-level-out error (:func:`~hystdisc.fitting.laws.loo_error`).
+        each candidate's leave-one-level-out error (:func:`~hystdisc.selection.laws.loo_error`).
     joint : OEFit
         The joint fit over every run with the chosen laws (the family's own fit when every
         law is linear).
@@ -149,7 +150,7 @@ class StagedFit:
         ``levels``: each level's current, runs, RMS and parameters with 95 % intervals;
         ``laws``: per law, the parameter, its per-level values and intervals, the chosen
         law, its coefficients by free-parameter name (``alpha_1``, ``alpha_2``,
-        ``alpha_i0``; ``a``, ``b`` and ``q`` or ``i0`` of :mod:`hystdisc.fitting.laws`), and
+        ``alpha_i0``; ``a``, ``b`` and ``q`` or ``i0`` of :mod:`hystdisc.selection.laws`), and
         each candidate's held-out error (leave one level out: ``z`` in units of the level's
         standard error, ``rms`` in the parameter's unit; null without enough levels);
         ``joint`` and ``linear``: RMS, held-out RMS, BIC of the joint fits; ``joint`` also
@@ -235,9 +236,20 @@ def _family_par(
     """``par``'s family (term form or state-space) started at ``start`` with ``fixed`` and
     the current ``laws`` (law name -> law)."""
     laws = dict(laws or {})
+    chain = measurement_effects(par.effects)  # the record's, not the damper's: kept
     if isinstance(par, FamilySystemParametrization):
-        return FamilySystemParametrization(par.family, par.experiment, dict(start), (), fixed, laws)
-    return FamilyParametrization(par.family, par.experiment, dict(start), (), fixed, par.norm, laws)
+        return FamilySystemParametrization(
+            par.family, par.experiment, dict(start), chain, fixed, laws
+        )
+    return FamilyParametrization(
+        par.family, par.experiment, dict(start), chain, fixed, par.norm, laws
+    )
+
+
+def measurement_effects(effects) -> tuple[str, ...]:
+    """The effects of the measurement chain among ``effects`` (no torque terms, no states:
+    a channel delay), which every per-level fit of the staged fit carries too."""
+    return tuple(e for e in effects if not EFFECTS[e].terms and not EFFECTS[e].structural)
 
 
 def level_fits(
@@ -356,9 +368,10 @@ def staged_fit(
         raise HystdiscError(
             "the staged fit starts from a family's own fit; fix: pass a FamilyParametrization fit"
         )
-    if par.effects:
+    if set(par.effects) - set(measurement_effects(par.effects)):
         raise HystdiscError(
-            "the staged fit works on the family alone; fix: pass the fit without effects"
+            "the staged fit works on the family alone (a measurement chain's effect aside); "
+            "fix: pass the fit without effects"
         )
     levels, _ = level_runs(fd.currents)
     if levels.size < MIN_STAGED_LEVELS:

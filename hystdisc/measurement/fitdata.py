@@ -29,7 +29,7 @@ from hystdisc.stats import samples_per_cycle
 
 if TYPE_CHECKING:
     from hystdisc.data.motion import MotionNoise
-    from hystdisc.fitting.motion_error import MotionEstimate
+    from hystdisc.measurement.motion import MotionEstimate
 
 #: Samples per cycle of the motion kept by the bulk of an output-error fit (the fit then
 #: finishes on the full data, so the optimum, intervals and BIC refer to every sample).
@@ -57,7 +57,7 @@ class FitData:
     steps: list[int] | None = None  # decimation factor of each run (sub-step caps scale)
     conditions: list[str] | None = None  # each run's test condition (None: one per run)
     #: each run's causal moving-average window (measured samples) of the recorded output,
-    #: applied to the simulated output too (None: not filtered; see fitting/measurement.py)
+    #: applied to the simulated output too (None: not filtered; see measurement/chain.py)
     filter_windows: list[int] | None = None
     #: the lattice step of the measured output when its noise is quantization (an encoder
     #: without noise above its floor); 0: the noise is independent from sample to sample.

@@ -47,9 +47,9 @@ from typing import Any
 
 import numpy as np
 
+from hystdisc.apply.predict import signals
 from hystdisc.data import Dataset
 from hystdisc.errors import HystdiscError
-from hystdisc.fitting.predict import signals
 from hystdisc.models import Model, TermModel
 from hystdisc.models.system import FamilySystem, StateSpaceModel, TermSystem
 from hystdisc.models.wheel import RIG_TERMS
@@ -234,10 +234,10 @@ def driven_inputs(dataset: Dataset) -> list[tuple[np.ndarray, np.ndarray]]:
     """The input of the exported system for every run of ``dataset``: ``(T, U)`` with
     ``U`` rows ``theta, theta_dot, current``, the motion ``hystdisc predict`` imposes.
 
-    That motion is the fit's estimate of it (:func:`hystdisc.fitting.predict.signals`:
+    That motion is the fit's estimate of it (:func:`hystdisc.apply.predict.signals`:
     a periodic run's harmonic series, else local fits), and, when the rig file declares a
     filter on ``theta``, the motion rebuilt from the filtered record
-    (:func:`hystdisc.fitting.measurement.unfiltered_motion`).
+    (:func:`hystdisc.measurement.chain.unfiltered_motion`).
 
     Examples
     --------

@@ -31,7 +31,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from hystdisc.data import motion_frequency
-from hystdisc.fitting.data import FitData
+from hystdisc.measurement.fitdata import FitData
 
 #: Harmonics of the fundamental used to reconstruct a periodic motion, at most.
 MAX_HARMONICS = 15

@@ -24,10 +24,10 @@ from hystdisc.data.motion import motion_noise, pooled_motion_noise
 from hystdisc.data.noise import NoiseEstimate
 from hystdisc.discovery import EqData, differentiate
 from hystdisc.errors import HystdiscError
-from hystdisc.fitting.data import FitData
-from hystdisc.fitting.measurement import apply_filter
-from hystdisc.fitting.motion_error import estimate_motion, filter_estimate
-from hystdisc.fitting.outliers import screen_runs
+from hystdisc.measurement.chain import apply_filter
+from hystdisc.measurement.fitdata import FitData
+from hystdisc.measurement.motion import estimate_motion, filter_estimate
+from hystdisc.measurement.outliers import screen_runs
 from hystdisc.registry import experiment_names, get_experiment
 from hystdisc.stats import samples_per_cycle
 
@@ -84,7 +84,7 @@ def prepare_data(
     noise = model.std
     theta_noise = float(np.median([estimate_noise(r.theta, r.fs) for r in runs]))
     # isolated glitches: replaced by their local prediction for stage 1 (derivatives,
-    # regression target), left out of the output-error residual (fitting/outliers.py)
+    # regression target), left out of the output-error residual (measurement/outliers.py)
     runs, raw_y, flags, glitches = screen_runs(runs, exp, noise, theta_noise)
     if exp.starts_at_rest:
         runs = [trim_release(r, theta_noise) for r in runs]

@@ -13,8 +13,8 @@ import numpy as np
 from hystdisc.data import Dataset, estimate_noise, filter_windows
 from hystdisc.data.envelope import Envelope, RunEnvelope
 from hystdisc.discovery.differentiation import differentiate
-from hystdisc.fitting.measurement import delayed, measured_output, unfiltered_motion
-from hystdisc.fitting.motion_error import estimate_motion
+from hystdisc.measurement.chain import delayed, measured_output, unfiltered_motion
+from hystdisc.measurement.motion import estimate_motion
 from hystdisc.models import TermModel
 from hystdisc.registry import get_experiment
 from hystdisc.simulation import simulate_driven_runs, simulate_mech, simulate_system
@@ -46,7 +46,7 @@ def beyond_envelope(envelope: dict | None, dataset: Dataset, unit: str = "rad") 
 
 
 #: Tolerances of a prediction's error-controlled integration (one simulation: accuracy
-#: first; python-control's export integrates to the same, ``fitting/control.py``).
+#: first; python-control's export integrates to the same, ``apply/control.py``).
 PREDICT_RTOL = 1e-11
 PREDICT_ATOL = 1e-13
 
@@ -82,7 +82,7 @@ def _predict_system(model, runs, ders, exp) -> list[np.ndarray]:
 def signals(dataset: Dataset, exp) -> list:
     """Each run's motion as a prediction takes it: a driven run's imposed motion and
     velocity as the fit estimates them (a periodic run's harmonic series, else local fits:
-    :func:`~hystdisc.fitting.motion_error.estimate_motion`; the motion before a rig's
+    :func:`~hystdisc.measurement.motion.estimate_motion`; the motion before a rig's
     declared filter when the filter acts on ``theta``), else the smoothed angle and its
     derivatives. Each item has ``theta``, ``theta_dot`` and ``theta_ddot``."""
     runs = list(dataset.runs)

@@ -58,7 +58,7 @@ LAWS: dict[str, tuple[str, ...]] = {
 #: leaving one out still leaves as many levels as coefficients).
 MIN_LEVELS = {"linear": 3, "quadratic": 4, "saturating": 4}
 #: A simpler law whose held-out error is within this factor of the best one's wins (the
-#: family selection's rule, :data:`~hystdisc.fitting.selection.HELDOUT_CLEARLY_WORSE`).
+#: family selection's rule, :data:`~hystdisc.selection.families.HELDOUT_CLEARLY_WORSE`).
 SIMPLER_WITHIN = 1.1
 #: The linear law is kept without a contest when it predicts the left-out levels within
 #: their uncertainty: the chi-square test of its leave-one-level-out errors (each over the
