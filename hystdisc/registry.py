@@ -6,7 +6,10 @@ dotted path and imported on first use, so listing names costs no import of numpy
 numba (``hystdisc --help`` stays fast).
 
 To add a family: write its module under ``hystdisc/models/families/`` and add one line
-to :data:`FAMILIES` (see ``doc/develop.rst``).
+to :data:`FAMILIES`; an effect, one object and one line in :data:`EFFECTS` (see
+``doc/develop.rst``). A family or effect defined elsewhere (a plugin, a test) is added at
+run time by :func:`register_family` / :func:`register_effect`, and taken away again by
+:func:`unregister` (or used inside :func:`registered`).
 
 Examples
 --------
@@ -28,12 +31,14 @@ hystdisc.errors.HystdiscError: unknown effect 'nope'; fix: use one of current_vi
 from __future__ import annotations
 
 import importlib
+from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import Any
 
 from hystdisc.errors import HystdiscError
 
-#: Family name -> ``module:attribute`` of its (instantiated) family object.
-FAMILIES: dict[str, str] = {
+#: Family name -> ``module:attribute`` of its (instantiated) family object (or the object).
+FAMILIES: dict[str, Any] = {
     "bingham": "hystdisc.models.families.bingham:BINGHAM",
     "dahl": "hystdisc.models.families.dahl:DAHL",
     "lugre": "hystdisc.models.families.lugre:LUGRE",
@@ -43,12 +48,8 @@ FAMILIES: dict[str, str] = {
     "tanh": "hystdisc.models.families.tanh:TANH",
 }
 
-#: The families that are state-space systems of their own (no term form, no stage-1
-#: shape): fitted after the term families, from their optima.
-SYSTEM_FAMILIES: tuple[str, ...] = ("spencer", "tanh")
-
-#: Effect name -> ``module:attribute`` of its effect object.
-EFFECTS: dict[str, str] = {
+#: Effect name -> ``module:attribute`` of its effect object (or the object).
+EFFECTS: dict[str, Any] = {
     "current_viscous": "hystdisc.models.effects:CURRENT_VISCOUS",
     "current_saturation": "hystdisc.models.effects:CURRENT_SATURATION",
     "coulomb": "hystdisc.models.effects:COULOMB",
@@ -70,7 +71,9 @@ EXPERIMENTS: dict[str, str] = {
 _ALIASES = {"boucwen": "bouc-wen", "bw": "bouc-wen", "boucwen-std": "bouc-wen-std"}
 
 
-def _resolve(path: str) -> Any:
+def _resolve(path: Any) -> Any:
+    if not isinstance(path, str):  # registered as the object itself
+        return path
     module, _, attr = path.partition(":")
     return getattr(importlib.import_module(module), attr)
 
@@ -81,8 +84,82 @@ def family_names() -> tuple[str, ...]:
 
 
 def term_family_names() -> tuple[str, ...]:
-    """Names of the families written in the term form (stage 1 has a shape for each)."""
-    return tuple(n for n in FAMILIES if n not in SYSTEM_FAMILIES)
+    """Names of the families written in the term form (stage 1 has a shape for each);
+    the others are state-space systems of their own (``Family.is_system``), fitted after
+    them from their optima."""
+    return tuple(n for n in FAMILIES if not get_family(n).is_system)
+
+
+def register_family(family: Any, path: str | None = None) -> None:
+    """Add ``family`` (a :class:`~hystdisc.models.Family` object, registered under its
+    ``name``) to the registry, after the others.
+
+    Parameters
+    ----------
+    family : Family
+        The family object.
+    path : str, optional
+        Its ``module:attribute``, to be imported lazily instead (then ``family`` is its
+        name).
+
+    Raises
+    ------
+    HystdiscError
+        When the name is taken.
+    """
+    name = family if path is not None else family.name
+    if name in FAMILIES:
+        raise HystdiscError(f"a family '{name}' is registered already; fix: choose another name")
+    FAMILIES[name] = path if path is not None else family
+
+
+def register_effect(effect: Any, path: str | None = None) -> None:
+    """Add ``effect`` (a :class:`~hystdisc.models.Effect`, registered under its ``name``)
+    to the catalogue, after the others (``path``: as for :func:`register_family`).
+
+    Raises
+    ------
+    HystdiscError
+        When the name is taken.
+    """
+    name = effect if path is not None else effect.name
+    if name in EFFECTS:
+        raise HystdiscError(f"an effect '{name}' is registered already; fix: choose another name")
+    EFFECTS[name] = path if path is not None else effect
+
+
+def unregister(name: str) -> None:
+    """Take the family or effect ``name`` out of the registry (what
+    :func:`register_family` or :func:`register_effect` added)."""
+    FAMILIES.pop(name, None)
+    EFFECTS.pop(name, None)
+
+
+@contextmanager
+def registered(*items: Any) -> Iterator[None]:
+    """Families and effects registered inside the ``with`` block only.
+
+    Examples
+    --------
+    >>> from hystdisc.models.effects import COULOMB
+    >>> import dataclasses
+    >>> extra = dataclasses.replace(COULOMB, name="dry_friction")
+    >>> with registered(extra):
+    ...     "dry_friction" in effect_names()
+    True
+    >>> "dry_friction" in effect_names()
+    False
+    """
+    names = []
+    try:
+        for item in items:
+            is_effect = hasattr(item, "to_torque")
+            (register_effect if is_effect else register_family)(item)
+            names.append(item.name)
+        yield
+    finally:
+        for name in names:
+            unregister(name)
 
 
 def effect_names() -> tuple[str, ...]:

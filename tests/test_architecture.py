@@ -32,6 +32,7 @@ LAYERS = [
     ("hystdisc.closing",),
     ("hystdisc.results",),
     ("hystdisc.design",),
+    ("hystdisc.pipeline",),
     ("hystdisc.estimator",),
     ("hystdisc.plotting",),
     ("hystdisc.report",),

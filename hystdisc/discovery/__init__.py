@@ -34,11 +34,18 @@ from hystdisc.discovery.library import (
     torque_terms_for,
 )
 from hystdisc.discovery.selection import ShapeFit, fit_shape
-from hystdisc.discovery.shapes import FAMILY_SHAPE, N_RANGE, SHAPES, HysteresisShape
+from hystdisc.discovery.shapes import (
+    DEFAULT_SHAPES,
+    FAMILY_SHAPE,
+    N_RANGE,
+    SHAPES,
+    HysteresisShape,
+)
 from hystdisc.discovery.starts import describe_structure, family_start, family_starts
 from hystdisc.discovery.varpro import varpro
 
 __all__ = [
+    "DEFAULT_SHAPES",
     "DEFAULT_TORQUE_TERMS",
     "FAMILY_SHAPE",
     "N_RANGE",

@@ -22,6 +22,7 @@ Examples
 
 from __future__ import annotations
 
+from collections.abc import Iterator, Mapping
 from typing import ClassVar
 
 import numpy as np
@@ -210,6 +211,8 @@ class BoucWenStdShape(_BoucWenShape):
 SHAPES: dict[str, HysteresisShape] = {
     sh.name: sh for sh in (NoShape(), DahlShape(), BoucWenShape(), BoucWenStdShape())
 }
+#: The shapes stage 1 compares by default (every one).
+DEFAULT_SHAPES: tuple[str, ...] = tuple(SHAPES)
 
 
 def shape_of(family) -> str:
@@ -223,7 +226,21 @@ def shape_of(family) -> str:
     raise ValueError(f"no hysteresis shape has the terms of family '{family.name}'")
 
 
+class _FamilyShapes(Mapping):
+    """Family name -> its hysteresis shape, for the registered families in term form, in
+    the registry's order (a live view: a family registered later is in it)."""
+
+    def __getitem__(self, name: str) -> str:
+        if name not in registry.term_family_names():
+            raise KeyError(name)
+        return shape_of(registry.get_family(name))
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(registry.term_family_names())
+
+    def __len__(self) -> int:
+        return len(registry.term_family_names())
+
+
 #: Hysteresis shape of each family in term form, in the registry's order.
-FAMILY_SHAPE: dict[str, str] = {
-    name: shape_of(registry.get_family(name)) for name in registry.term_family_names()
-}
+FAMILY_SHAPE: Mapping[str, str] = _FamilyShapes()

@@ -566,12 +566,7 @@ class OutputErrorFitter:
         return out
 
     def _fold_refit(
-        self,
-        fold: list[int],
-        v_gn: np.ndarray,
-        rss_gn: float | None,
-        full: bool = False,
-        joint: tuple[np.ndarray, float] | None = None,
+        self, fold: list[int], v_gn: np.ndarray, rss_gn: float | None, full: bool = False
     ) -> np.ndarray:
         """The parameters fitted without the runs ``fold``: the Gauss-Newton estimate
         ``v_gn`` when the other runs' RSS there is its linear prediction ``rss_gn`` (within
@@ -579,10 +574,7 @@ class OutputErrorFitter:
         Levenberg-Marquardt iterations on the other runs from it (the linear step alone
         misjudges a fold that moves the fit far). ``full``: a complete fit on the other
         runs from ``v_gn`` (up to ``max_nfev`` iterations; ``rss_gn`` is not used), for a
-        fold whose quick estimate did not predict it. ``joint``: the joint optimum's vector
-        and its RSS over the other runs; the iterations start there when the Gauss-Newton
-        estimate fits the other runs worse (a step along a direction the data leave nearly
-        flat, such as Spencer's node dashpot at its Bouc-Wen limit, can leave the basin)."""
+        fold whose quick estimate did not predict it."""
         x = np.clip(v_gn[: self.npar], self.par.lower, self.par.upper)
         if HELDOUT_STEPS < 1 and not full:
             return x
@@ -599,12 +591,6 @@ class OutputErrorFitter:
             and abs(r0 @ r0 - rss_gn) < HELDOUT_GN_TRUST * self.data.noise_std**2
         ):
             return x
-        if joint is not None and not (np.all(np.isfinite(r0)) and r0 @ r0 <= joint[1]):
-            _, nu_j = self._split(joint[0])
-            x = np.asarray(joint[0][: self.npar], dtype=float)
-            v0 = np.concatenate([x, nu_j[train].ravel()])
-            with np.errstate(all="ignore"):
-                r0 = sub.residuals(v0)
         free = np.full(sub.nnu * len(train), np.inf)
         lo = np.concatenate([self.par.lower, -free])
         hi = np.concatenate([self.par.upper, free])
@@ -672,7 +658,7 @@ class OutputErrorFitter:
             keep = np.ones(len(res), dtype=bool)
             keep[rows] = False
             rss_gn = float(res[keep] @ res[keep] + 2 * go @ delta + delta @ Go @ delta)
-            xr = self._fold_refit(fold, vr, rss_gn, joint=(v, float(res[keep] @ res[keep])))
+            xr = self._fold_refit(fold, vr, rss_gn)
             out, st = self._predict_fold(xr, fold, nu)
             if any(st):
                 # the quick estimate can leave the stable region on its own: the fold is

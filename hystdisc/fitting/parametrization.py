@@ -176,8 +176,6 @@ class FamilyParametrization(Parametrization):
         tm.J = p.get("J", 1.0)
         for e in self.effects:
             EFFECTS[e].apply(tm, p, p["k_s"])
-        if "channel_delay" in self.effects:
-            tm.delay = p["tau_d"]
         return tm
 
 

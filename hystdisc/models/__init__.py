@@ -6,6 +6,8 @@ and :data:`EFFECTS` here are that registry's objects by name, in its order.
 
 from __future__ import annotations
 
+from collections.abc import Iterator, Mapping
+
 from hystdisc import registry
 from hystdisc.models.effects import Effect
 from hystdisc.models.families.base import CURRENT_LAWS, LAW_SUFFIX, Family
@@ -31,10 +33,33 @@ from hystdisc.models.terms import (
 get_family = registry.get_family
 get_effect = registry.get_effect
 
+
+class _Registered(Mapping):
+    """A live, read-only view of the registry: name -> object, in its order (what is
+    registered later, a plugin's family or effect, is in it too)."""
+
+    def __init__(self, names, get) -> None:
+        self._names, self._get = names, get
+
+    def __getitem__(self, name: str):
+        if name not in self._names():
+            raise KeyError(name)
+        return self._get(name)
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._names())
+
+    def __len__(self) -> int:
+        return len(self._names())
+
+    def __repr__(self) -> str:
+        return f"<registered: {', '.join(self._names())}>"
+
+
 #: Family name -> family object, in the registry's order.
-FAMILIES: dict[str, Family] = {n: registry.get_family(n) for n in registry.family_names()}
+FAMILIES: Mapping[str, Family] = _Registered(registry.family_names, registry.get_family)
 #: Effect name -> effect object, in the registry's order.
-EFFECTS: dict[str, Effect] = {n: registry.get_effect(n) for n in registry.effect_names()}
+EFFECTS: Mapping[str, Effect] = _Registered(registry.effect_names, registry.get_effect)
 
 __all__ = [
     "BIG",

@@ -12,6 +12,9 @@ from dataclasses import dataclass, replace
 from hystdisc.models.params import BIG, Param
 from hystdisc.models.terms import SHEAR_M0, SHEAR_TERM, TermModel
 
+#: The roles an effect may declare (:attr:`Effect.roles`).
+ROLES = ("spring", "current_law", "measurement")
+
 
 @dataclass(frozen=True)
 class Effect:
@@ -53,6 +56,20 @@ class Effect:
         (parameter name, :class:`~hystdisc.models.TermModel` attribute), e.g. the
         shear-thinning exponent ``("m_st", "m")``. The effect is absent when its torque
         coefficients are 0, whatever its exponents (:meth:`off_values`).
+    roles : tuple of str
+        What else the pipeline must know of it, from :data:`ROLES`: ``"spring"`` (its
+        terms are linear in the angle: it means something only on a rig with a spring),
+        ``"current_law"`` (a current law that is not linear: the staged fit, which chooses
+        the laws, decides it), ``"measurement"`` (it acts on the record, not on the
+        damper: every family carries it alike, and so does the staged fit's each level).
+    shift_param : str
+        The parameter that shifts the measured angle (the spring's neutral angle): the
+        model plus the effect is restarted from the family fitted on the shifted data
+        (:mod:`hystdisc.closing.shift`); empty: none.
+    delay_param : str
+        The parameter that delays the recorded output behind the motion or input (s),
+        written into the term model's ``delay`` (:meth:`apply`) and into a state-space
+        model's output delay; empty: none.
     """
 
     name: str
@@ -88,6 +105,21 @@ class Effect:
         return getattr(importlib.import_module(module), attr)(terms, experiment)
 
     exponents: tuple[tuple[str, str], ...] = ()
+    roles: tuple[str, ...] = ()
+    shift_param: str = ""
+    delay_param: str = ""
+
+    def has_role(self, role: str) -> bool:
+        """The effect has ``role`` (one of :data:`ROLES`).
+
+        Examples
+        --------
+        >>> OFFSET.has_role("spring"), COULOMB.has_role("spring")
+        (True, False)
+        """
+        if role not in ROLES:
+            raise ValueError(f"unknown role '{role}'; use one of {', '.join(ROLES)}")
+        return role in self.roles
 
     def apply(self, tm: TermModel, values: Mapping[str, float], k_s: float) -> TermModel:
         """Add the effect at parameters ``values`` to the term model ``tm`` (in place).
@@ -102,6 +134,8 @@ class Effect:
             tm.torque[k] = tm.torque.get(k, 0.0) + v
         for name, attr in self.exponents:
             setattr(tm, attr, float(values[name]))
+        if self.delay_param:
+            tm.delay = float(values[self.delay_param])
         return tm
 
     def off_values(self) -> dict[str, float]:
@@ -186,7 +220,8 @@ _ONE_TERM = (
 CURRENT_VISCOUS, CURRENT_SATURATION, COULOMB, QUADRATIC_DAMPING, CUBIC_STIFFNESS = (
     _one_term_effect(*row) for row in _ONE_TERM
 )
-CUBIC_STIFFNESS = replace(CUBIC_STIFFNESS, rig=True)  # the rig's spring, not the damper
+CUBIC_STIFFNESS = replace(CUBIC_STIFFNESS, rig=True, roles=("spring",))  # the rig's spring
+CURRENT_SATURATION = replace(CURRENT_SATURATION, roles=("current_law",))
 
 OFFSET = Effect(
     "offset",
@@ -196,6 +231,8 @@ OFFSET = Effect(
     lambda p, ks: {"1": -ks * p["theta_off"]},
     lambda c, ks: {"theta_off": -c.get("1", 0.0) / ks if ks else 0.0},
     rig=True,
+    roles=("spring",),
+    shift_param="theta_off",
 )
 
 #: Admissible channel delay [s]: either sign, at most this long (a delay of a tenth of a
@@ -220,6 +257,8 @@ CHANNEL_DELAY = Effect(
     lambda p, ks: {},
     lambda c, ks: {"tau_d": 0.0},
     rig=True,
+    roles=("measurement",),
+    delay_param="tau_d",
 )
 
 

@@ -47,7 +47,14 @@ from hystdisc.models.compiled import (
 )
 from hystdisc.models.params import RIG_PARAMS, Param, check_params
 from hystdisc.models.terms import SIGN_EPS, TermModel
-from hystdisc.registry import get_effect, get_experiment
+from hystdisc.registry import effect_names, get_effect, get_experiment
+
+
+def delay_params() -> tuple[str, ...]:
+    """The parameters of the registered effects that delay the recorded output
+    (:attr:`~hystdisc.models.effects.Effect.delay_param`)."""
+    found = (get_effect(n).delay_param for n in effect_names())
+    return tuple(p for p in found if p)
 
 
 class StateSpaceModel:
@@ -127,11 +134,13 @@ class StateSpaceModel:
         return x
 
     def output_delay(self, values: Mapping[str, float]) -> float:
-        """Delay (s) of the measured output behind the model's: the ``channel_delay``
-        parameter ``tau_d`` among ``values``, else the delay of the term model the system
-        is built around (a structural effect's), else 0."""
-        if "tau_d" in values:
-            return float(values["tau_d"])
+        """Delay (s) of the measured output behind the model's: a delay parameter of an
+        effect (:attr:`~hystdisc.models.effects.Effect.delay_param`) among ``values``,
+        else the delay of the term model the system is built around (a structural
+        effect's), else 0."""
+        for name in delay_params():
+            if name in values:
+                return float(values[name])
         terms = getattr(self, "terms", None)
         return float(terms.delay) if terms is not None else 0.0
 

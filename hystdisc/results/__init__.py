@@ -1,10 +1,10 @@
 """Results: the typed, versioned record of a discovery (``results.json``).
 
 :class:`Results` is the top-level record (``Discovery.results_``), built in one place,
-:func:`build_results`; its entries are the dataclasses of :mod:`hystdisc.results.records`.
+:func:`hystdisc.pipeline.record.build_results`; its entries are the dataclasses of :mod:`hystdisc.results.records`.
 """
 
-from hystdisc.results.build import build_results, family_entry, final_entry
+from hystdisc.results.build import family_entry, final_entry
 from hystdisc.results.record import SIG_DIGITS, Record, SchemaError, round_json
 from hystdisc.results.records import (
     RECORDS,
@@ -46,7 +46,6 @@ __all__ = [
     "SkippedEffect",
     "Stage1Record",
     "TermModelRecord",
-    "build_results",
     "family_entry",
     "final_entry",
     "migrate",

@@ -244,6 +244,9 @@ class SystemFamily(Family):
     """
 
     is_system = True
+    #: The term family whose output-error optimum its starts are mapped from
+    #: (:meth:`starts` reads that family's parameters).
+    start_base: str = "bouc-wen-std"
     #: The compiled partial derivatives of the ``driven_*`` and ``mech_*`` functions
     #: (:class:`~hystdisc.models.system.StateSpaceModel`'s ``rate_jac`` and
     #: ``observe_grad``); None: the family's Jacobian is taken by differences.

@@ -1,0 +1,112 @@
+"""Stage: the closing loop on the selected family, the families compared again with its
+effects, the final model.
+
+When the loop accepts effects with a term form, every family is compared again with them
+(:mod:`hystdisc.closing.reselect`); when the selected family's intervals hold the values
+where it is a smaller family plus effects, the smaller model is fitted and selected by
+the same rule (:mod:`hystdisc.closing.reduction`). Families whose BIC lies within
+:data:`EQUAL_FIT_BIC` of the selected one's fit equally well.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Callable
+
+from hystdisc.closing import LoopResult, close_loop
+from hystdisc.closing.again import compare_again
+from hystdisc.closing.reselect import Context
+from hystdisc.closing.shift import shift_restart
+from hystdisc.errors import HystdiscWarning
+from hystdisc.fitting import OEFit
+from hystdisc.models import EFFECTS
+from hystdisc.pipeline.state import State
+from hystdisc.simulation.admissibility import check_admissible
+
+#: Families whose BIC lies within this of the selected one "fit equally well".
+EQUAL_FIT_BIC = 6.0
+
+
+def decided_by_staged(state: State) -> dict[str, str]:
+    """Effects the staged fit decided (name -> why): the effects whose role is a current
+    law (the staged fit chose the laws, and they are the selected family's model)."""
+    if state.staged is None:
+        return {}
+    chosen = ", ".join(f"{d['parameter']} {d['law']}" for d in state.staged.laws.values())
+    why = f"the staged fit chose the current laws ({chosen})"
+    return {name: why for name, eff in EFFECTS.items() if eff.has_role("current_law")}
+
+
+def _loop(state: State, fit: OEFit, restart: Callable | None) -> LoopResult:
+    """The closing loop on ``fit``."""
+    state.say("closing the loop: residual -> catalogued effects")
+    return close_loop(
+        fit,
+        state.fd,
+        state.noise_std,
+        state.eq,
+        state.stage1_shape(fit),
+        max_nfev=state.options.max_nfev,
+        heldout=True,
+        progress=state.say,
+        envelope=state.envelope,
+        decided=decided_by_staged(state),
+        noise_samples=state.noise.samples if state.noise is not None else None,
+        restart=restart,
+        failures=state.failures,
+    )
+
+
+def close(state: State, fit_family: Callable) -> None:
+    """The loop, the comparison again, equal fits, the final model and its admissibility.
+
+    ``fit_family(dataset, family)`` fits one family with all its starts and no loop (the
+    restart of a shift effect: :func:`~hystdisc.closing.shift.shift_restart`).
+    """
+    opts, fd, failures = state.options, state.fd, state.failures
+    selected = state.family_fits[state.family]
+    restart = None
+    if opts.close_loop:
+        restart = shift_restart(state.dataset, fit_family, state.say, min_shift=fd.noise_std)
+        state.loop = _loop(state, selected, restart)
+    state.bics = {n: f.bic for n, f in state.family_fits.items()}
+    # the staged laws belong to the selected family alone: no other family replaces it
+    staged_changed = state.staged is not None and state.staged.changed
+    compare = opts.model is None and len(state.compared) > 1 and not staged_changed
+    if compare and state.loop is not None:
+        ctx = Context(fd, state.eq, state.envelope, lambda fit: _loop(state, fit, restart),
+                      state.stage1_shape, opts.max_nfev, opts.heldout, state.map,
+                      state.say)  # fmt: skip
+        again = failures.guard("comparison with the effects", compare_again,
+                               dict(state.family_fits), state.family, state.loop,
+                               ctx)  # fmt: skip
+        if again is not None:
+            state.reselection, state.reduction = again.reselection, again.reduction
+        if again is not None and again.bics is not None:  # outliers as first confirmed
+            state.family, state.selection_note = again.family, again.note
+            state.loop, state.bics = again.loop, again.bics
+            selected = state.family_fits[state.family]
+    # equal fits: among the fits of the comparison that made the selection
+    ref = state.bics[state.family]
+    state.equal_fits = sorted(
+        n for n, b in state.bics.items() if b - ref < EQUAL_FIT_BIC and n != state.family
+    )
+    state.final_fit = selected if state.loop is None else state.loop.fit
+    kept = [v["entry"]["name"] for v in state.measured if v["entry"] is not None]
+    state.effects = kept + ([] if state.loop is None else list(state.loop.effects))
+    final = state.final_fit
+    state.final_admissibility = (
+        state.admissibility[state.family]
+        if final is selected  # the loop accepted nothing: already checked
+        else check_admissible(
+            final.model if final.is_system else final.term_part, state.envelope
+        )  # fmt: skip
+    )
+    if not state.final_admissibility.ok:
+        warnings.warn(
+            f"{state.dataset.source}: THE RESULT IS NOT PHYSICAL: "
+            f"{'; '.join(state.final_admissibility.violations)}; do not use the model "
+            "beyond the training data (fix: see the family table for an admissible family)",
+            HystdiscWarning,
+            stacklevel=4,
+        )

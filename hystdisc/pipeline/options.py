@@ -1,0 +1,63 @@
+"""The settings of one discovery: :class:`Options`.
+
+The :class:`~hystdisc.Discovery` estimator stores its parameters as scikit-learn asks; the
+pipeline reads them from one frozen record, so that a stage can neither change a setting
+nor depend on the estimator.
+
+Examples
+--------
+>>> opts = Options(families=("dahl",), heldout=False)
+>>> opts.family_list()
+['dahl']
+>>> opts.replace(model="lugre").family_list()
+['lugre']
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from hystdisc.discovery import DEFAULT_SHAPES, DEFAULT_TORQUE_TERMS
+from hystdisc.registry import family_names, get_family
+
+
+@dataclass(frozen=True)
+class Options:
+    """What a discovery is asked to do (the parameters of :class:`~hystdisc.Discovery`,
+    documented there)."""
+
+    experiment: str | None = None
+    families: Sequence[str] | None = None
+    model: str | None = None
+    torque_terms: Sequence[str] = DEFAULT_TORQUE_TERMS
+    shapes: Sequence[str] = DEFAULT_SHAPES
+    threshold: float | None = None
+    ensemble: bool = False
+    heldout: bool = True
+    seed: int = 0
+    max_nfev: int = 40
+    close_loop: bool = True
+    input_hold: str = "cubic"
+    single_current: bool = False
+    n_jobs: int | None = None
+    staged: bool = False
+    n_starts: int = 4
+
+    @classmethod
+    def of(cls, params: Mapping[str, Any]) -> Options:
+        """The options among ``params`` (an estimator's ``get_params()``; others ignored)."""
+        names = {f.name for f in dataclasses.fields(cls)}
+        return cls(**{k: v for k, v in params.items() if k in names})
+
+    def replace(self, **changes: Any) -> Options:
+        """A copy with ``changes``."""
+        return dataclasses.replace(self, **changes)
+
+    def family_list(self) -> list[str]:
+        """The families asked for, by their registered names (the declared one alone)."""
+        if self.model is not None:
+            return [get_family(self.model).name]
+        return [get_family(f).name for f in (self.families or family_names())]

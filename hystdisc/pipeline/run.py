@@ -1,0 +1,115 @@
+"""The pipeline of one discovery: named stages over one typed state.
+
+=====================  ===================================================================
+stage                  what it does
+=====================  ===================================================================
+``prepare``            the runs validated, both stages' data prepared, the families to
+                       compare decided (:mod:`~hystdisc.pipeline.prepare`)
+``first_fits``         stage 1 for each hysteresis shape, every family's first
+                       output-error fit, the delay between the channels
+                       (:mod:`~hystdisc.pipeline.first`)
+``global_fits``        more starts, nesting, held-out errors (:mod:`~hystdisc.pipeline.starts`)
+``system_fits``        the state-space families from their base's optimum; no diverged fit
+``choose``             selection, measurement effects judged, glitches, the staged fit
+                       (:mod:`~hystdisc.pipeline.choose`)
+``close``              the closing loop, the comparison again, the final model
+                       (:mod:`~hystdisc.pipeline.close`)
+=====================  ===================================================================
+
+:func:`run` runs them in order and returns the :class:`~hystdisc.pipeline.state.State`;
+any task inside a stage that fails is recorded in ``state.failures`` and the run goes on
+(:mod:`hystdisc.faults`); :func:`~hystdisc.pipeline.record.build_results` makes
+``results.json`` of the state.
+"""
+
+from __future__ import annotations
+
+import sys
+import threading
+import time
+import warnings
+from collections.abc import Callable
+
+import numpy as np
+from threadpoolctl import threadpool_limits
+
+from hystdisc.data import Dataset
+from hystdisc.errors import HystdiscError
+from hystdisc.fitting import OEFit
+from hystdisc.pipeline.choose import choose
+from hystdisc.pipeline.close import close
+from hystdisc.pipeline.first import first_fits
+from hystdisc.pipeline.options import Options
+from hystdisc.pipeline.prepare import prepare
+from hystdisc.pipeline.starts import global_fits, system_fits
+from hystdisc.pipeline.state import State
+from hystdisc.simulation.parallel import limit_threads
+
+_SAY_LOCK = threading.Lock()
+
+
+def stderr_printer() -> Callable[[str], None]:
+    """Progress on stderr as ``[  1.2 s] message`` (the command line's form)."""
+    t0 = time.perf_counter()
+
+    def say(msg: str) -> None:
+        print(f"[{time.perf_counter() - t0:6.1f} s] {msg}", file=sys.stderr, flush=True)
+
+    return say
+
+
+def _serialized(progress: Callable[[str], None] | None) -> Callable[[str], None]:
+    """``progress`` called by one thread at a time (a no-op when None)."""
+    if progress is None:
+        return lambda msg: None
+
+    def say(msg: str) -> None:
+        with _SAY_LOCK:
+            progress(msg)
+
+    return say
+
+
+def fit_family(dataset: Dataset, options: Options, family: str) -> OEFit | None:
+    """``family`` fitted on ``dataset`` with ``options`` and all its starts, without the
+    loop or the staged fit (the restart of a shift effect:
+    :func:`~hystdisc.closing.shift.shift_restart`); None when it fails."""
+    opts = options.replace(model=family, close_loop=False, staged=False, ensemble=False)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            state = run(dataset, opts)
+    except (HystdiscError, np.linalg.LinAlgError, ValueError, FloatingPointError):
+        return None
+    return state.family_fits[state.family]
+
+
+def run(dataset: Dataset, options: Options, progress: Callable[[str], None] | None = None) -> State:
+    """Every stage in turn on ``dataset`` (see the module docstring).
+
+    Parameters
+    ----------
+    dataset : Dataset
+        The runs.
+    options : Options
+        What to do.
+    progress : callable, optional
+        Receives short progress messages.
+
+    Returns
+    -------
+    State
+        Filled by the stages (``failed``: what failed and was dropped).
+    """
+    state = State(dataset, options, _serialized(progress))
+    # small dense algebra on tall matrices: extra BLAS threads only add overhead; the
+    # simulations of a batch run side by side on up to n_jobs threads
+    with np.errstate(all="ignore"), threadpool_limits(limits=1), limit_threads(options.n_jobs):
+        prepare(state)
+        first_fits(state)
+        global_fits(state)
+        system_fits(state)
+        choose(state)
+        close(state, lambda data, family: fit_family(data, options, family))
+    state.failed = state.failures.items()
+    return state
