@@ -57,7 +57,7 @@ EFFECTS: dict[str, Any] = {
     "cubic_stiffness": "hystdisc.models.effects:CUBIC_STIFFNESS",
     "offset": "hystdisc.models.effects:OFFSET",
     "channel_delay": "hystdisc.models.effects:CHANNEL_DELAY",
-    "series_compliance": "hystdisc.models.effects:SERIES_COMPLIANCE",
+    "series_compliance": "hystdisc.models.wheel:SERIES_COMPLIANCE",
     "shear_thinning": "hystdisc.models.effects:SHEAR_THINNING",
 }
 

@@ -35,7 +35,7 @@ import matplotlib.pyplot as plt
 from hystdisc import Discovery, Model, generate
 from hystdisc.plotting import loops_figure, plot_family_comparison, plot_fit
 from hystdisc.registry import term_family_names
-from hystdisc.report import FAMILY_COLORS, fit_signals, model_loops, write_report
+from hystdisc.report import color_of, fit_signals, model_loops, write_report
 from hystdisc.simulation.studies import loop
 
 FAST = os.environ.get("HYSTDISC_NOTEBOOK_FAST") == "1"
@@ -101,7 +101,7 @@ for j, name in enumerate(FAMILIES):
         residual_ax=rax,
         label=name,
         draw_measured=j == 0,
-        color=FAMILY_COLORS[name],
+        color=color_of(name),
         title=f"run {sig['name']}, {sig['current']:g} A",
     )
 
@@ -135,7 +135,7 @@ fig, axes = plt.subplots(1, 2, figsize=(11, 3.8), layout="constrained")
 sines = []
 for name in ("dahl", "lugre", "bouc-wen"):
     lp = loop(d.family_fits_[name].term_model, current=1.0, amplitude=0.2, frequency=1.5)
-    lp.update(label=name, style={"color": FAMILY_COLORS[name]})
+    lp.update(label=name, style={"color": color_of(name)})
     sines.append(lp)
 loops_figure(sines, axes=axes, title="fitted models, 0.2 rad at 1.5 Hz, 1 A")
 # %% [markdown]

@@ -37,7 +37,7 @@ import numpy as np
 from hystdisc import Discovery, Model, generate
 from hystdisc.data import Dataset, Run
 from hystdisc.plotting import loops_figure, plot_fit, plot_residual_spectrum
-from hystdisc.report import FAMILY_COLORS, fit_signals, model_loops
+from hystdisc.report import color_of, fit_signals, model_loops
 
 FAST = os.environ.get("HYSTDISC_NOTEBOOK_FAST") == "1"
 DURATION = 2.5 if FAST else 4.0
@@ -108,7 +108,7 @@ for j, key in enumerate(("dahl", "final")):
         residual_ax=rax,
         label=label,
         draw_measured=j == 0,
-        color=FAMILY_COLORS[key],
+        color=color_of(key),
         title=f"{sig['current']:g} A",
     )
 
@@ -122,9 +122,9 @@ fs = data[0].fs
 before = d.family_fits_["dahl"].residuals
 after = d.final_fit_.residuals
 fig, ax = plt.subplots(figsize=(8, 3.5), layout="constrained")
-plot_residual_spectrum(before, fs, ax=ax, label="dahl", color=FAMILY_COLORS["dahl"])
+plot_residual_spectrum(before, fs, ax=ax, label="dahl", color=color_of("dahl"))
 plot_residual_spectrum(
-    after, fs, ax=ax, noise_std=d.noise_std_, label="dahl + effects", color=FAMILY_COLORS["final"]
+    after, fs, ax=ax, noise_std=d.noise_std_, label="dahl + effects", color=color_of("final")
 )
 ax.set_title(f"whiteness p after: {res.residual.whiteness_p:.3g}")
 # %% [markdown]

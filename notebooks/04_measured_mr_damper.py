@@ -40,7 +40,7 @@ from hystdisc import Discovery, load
 from hystdisc.data import Dataset, Run
 from hystdisc.plotting import loops_figure, plot_family_comparison, plot_residual_spectrum
 from hystdisc.registry import family_names
-from hystdisc.report import FAMILY_COLORS, fit_residuals, model_loops
+from hystdisc.report import color_of, fit_residuals, model_loops
 
 FAST = os.environ.get("HYSTDISC_NOTEBOOK_FAST") == "1"
 root = os.environ.get("HYSTDISC_DATA")
@@ -172,7 +172,7 @@ if HAVE_DATA:
         data.runs[0].fs,
         ax=ax,
         noise_std=d.noise_std_,
-        color=FAMILY_COLORS.get(d.family_),
+        color=color_of(d.family_),
         label=d.family_,
     )
     ax.set_title("residual spectrum of the final model")

@@ -16,8 +16,8 @@ from hystdisc.discovery import (
     TorqueLibrary,
     torque_state,
 )
-from hystdisc.discovery.shapes import N_RANGE, shape_of
 from hystdisc.models import HYSTERESIS_TERM_NAMES, TORQUE_TERM_NAMES, Z_TORQUE_TERMS
+from hystdisc.models.shapes import N_RANGE, shape_of
 from hystdisc.registry import get_family, term_family_names
 
 

@@ -20,7 +20,7 @@ import pytest
 from hystdisc import Discovery
 from hystdisc.apply.predict import predict_dataset
 from hystdisc.closing.structural import mount_starts
-from hystdisc.models import Model
+from hystdisc.models import Model, get_effect
 from hystdisc.models.wheel import TermsOnCompliantMount
 from hystdisc.results import Results
 from hystdisc.simulation.synth import generate
@@ -115,7 +115,8 @@ def test_no_mount_nothing_claimed():
 def test_mount_starts_span_stiffness_above_the_damper():
     data = _data(True)
     d = Discovery(model=FAMILY, close_loop=False).fit(data)
-    starts = mount_starts(d.family_fits_[FAMILY], d.fit_data_)
+    mount = get_effect("series_compliance").structure
+    starts = mount_starts(d.family_fits_[FAMILY], d.fit_data_, mount)
     k = sorted({round(s["k_w"], 6) for s in starts})
     assert len(starts) == 16 and len(k) == 4
     # the truth lies inside the grid's span

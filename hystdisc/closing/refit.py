@@ -22,11 +22,9 @@ from hystdisc.models import EFFECTS, Z_TORQUE_TERMS
 from hystdisc.stats import bic_change
 
 #: An effect is accepted only when its refit lowers BIC by more than this (the margin
-#: within which :mod:`hystdisc.estimator` calls two families equal fits,
+#: within which :mod:`hystdisc.pipeline.close` calls two families equal fits,
 #: ``EQUAL_FIT_BIC``), and refitted only when the score test predicts such a drop.
 EFFECT_BIC_MARGIN = 6.0
-#: Effects whose terms are linear in these signals need a rig spring to mean anything.
-SPRING_EFFECTS = ("offset", "cubic_stiffness")
 
 
 def current_levels(currents: np.ndarray) -> int:
@@ -119,7 +117,7 @@ def candidate_effects(fit: OEFit, data: FitData) -> tuple[list[str], list[dict]]
             reason = f"{fam.name} has no hysteretic state z"
         elif any(t.startswith("i^2") for t in eff.terms) and levels < 3:
             reason = f"needs three current levels or more, the data have {levels}"
-        elif name in SPRING_EFFECTS and not spring:
+        elif eff.has_role("spring") and not spring:
             reason = "no rig spring (k_s is not significantly above 0)"
         if reason is None:
             out.append(name)

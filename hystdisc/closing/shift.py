@@ -19,10 +19,7 @@ import numpy as np
 
 from hystdisc.data import Dataset
 from hystdisc.fitting import FamilyParametrization, OEFit
-from hystdisc.fitting.parametrization import in_torque_units
-
-#: Effects that are a shift of the measured angle, and the parameter that is the shift.
-SHIFT_PARAMS = {"offset": "theta_off"}
+from hystdisc.models import EFFECTS
 
 
 def shifted(dataset: Dataset, shift: float) -> Dataset:
@@ -46,7 +43,8 @@ def shift_restart(
     say: Callable[[str], None] = lambda msg: None,
     min_shift: float = 0.0,
 ) -> Callable[[str, dict, FamilyParametrization], dict | None]:
-    """The loop's restart for the shift effects (:data:`SHIFT_PARAMS`).
+    """The loop's restart for the shift effects (an effect's
+    :attr:`~hystdisc.models.effects.Effect.shift_param`: the parameter that is the shift).
 
     Parameters
     ----------
@@ -67,7 +65,7 @@ def shift_restart(
         ``restart(effect, values, par)`` (:data:`~hystdisc.closing.loop.Restart`): for a
         shift effect, ``values`` with the family's own replaced by its fit on the data
         shifted by the effect's value (rescaled to torque units when ``par`` has z in
-        them: :func:`~hystdisc.fitting.parametrization.in_torque_units`). None for other
+        them: :meth:`~hystdisc.models.Family.in_torque_units`). None for other
         effects, a shift not above ``min_shift`` or not finite, a failed fit, or a fit
         in torque units for a model in z_sat units. One fit per family and shift
         (rounded to 4 digits).
@@ -75,7 +73,7 @@ def shift_restart(
     made: dict[tuple[str, float], OEFit | None] = {}
 
     def restart(effect: str, values: dict, par: FamilyParametrization) -> dict | None:
-        key = SHIFT_PARAMS.get(effect)
+        key = EFFECTS[effect].shift_param or None
         shift = float(values.get(key, np.nan)) if key is not None else np.nan
         if not (np.isfinite(shift) and abs(shift) > min_shift):
             return None
@@ -94,7 +92,7 @@ def shift_restart(
         if getattr(fit.par, "norm", None) != norm:
             if norm != "alpha_1":
                 return None  # a loop that never saturates has no z_sat to rescale to
-            own = in_torque_units(name, own)  # the model's z is in torque units
+            own = par.family.in_torque_units(own)  # the model's z is in torque units
         return {**values, **own, key: shift}
 
     return restart

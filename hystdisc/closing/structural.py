@@ -60,6 +60,7 @@ from hystdisc.closing.scores import EffectScore
 from hystdisc.fitting import OEFit, OutputErrorFitter
 from hystdisc.measurement import FitData
 from hystdisc.models import EFFECTS
+from hystdisc.models.effects import Structure
 from hystdisc.stats import bic_change, masked, sampling_rate
 
 #: Runs a wheel's grid is screened on (:func:`screen_runs`).
@@ -94,9 +95,23 @@ MOUNT_STIFFNESS_RATIOS = (2.0, 5.0, 15.0, 50.0)
 MOUNT_FREQUENCY_RATIOS = (8.0, 25.0)
 
 
-def _wheel(f_hz: float, m: float, zeta: float) -> dict[str, float]:
-    k = m * (2.0 * np.pi * f_hz) ** 2
-    return {"m_w": m, "k_w": k, "c_w": 2.0 * zeta * np.sqrt(k * m)}
+def _wheel(structure: Structure, f_hz: float, m: float, zeta: float) -> dict[str, float]:
+    """The structure's values at natural frequency ``f_hz``, inertia ``m``, damping ratio
+    ``zeta``."""
+    return structure.values(m * (2.0 * np.pi * f_hz) ** 2, m, zeta)
+
+
+def _structure(name: str) -> Structure:
+    """The structure of the structural effect ``name``."""
+    structure = EFFECTS[name].structure
+    if structure is None:
+        raise ValueError(f"{name} is not a structural effect")
+    return structure
+
+
+def _start_key(structure: Structure) -> str:
+    """The key under which a screened start keeps its grid cell's stiffness."""
+    return f"{structure.stiffness}_start"
 
 
 def residual_peak(fit: OEFit, data: FitData) -> float | None:
@@ -131,8 +146,9 @@ def structural_starts(fit: OEFit, data: FitData, name: str) -> list[dict[str, fl
     list of dict
         Full parameter starts (the current optimum with the effect's parameters set).
     """
+    structure = _structure(name)
     if data.exp.motion_imposed:
-        return mount_starts(fit, data)
+        return mount_starts(fit, data, structure)
     f_beam = natural_frequency(fit, data.experiment)
     if f_beam is None:
         return []
@@ -143,7 +159,7 @@ def structural_starts(fit: OEFit, data: FitData, name: str) -> list[dict[str, fl
     out = []
     for f, m, zeta in itertools.product(freqs, INERTIA_RATIOS, DAMPING_RATIOS):
         start = dict(fit.params)
-        start.update(_wheel(f, m, zeta))
+        start.update(_wheel(structure, f, m, zeta))
         out.append(start)
     return out
 
@@ -162,16 +178,18 @@ def drive_frequency(data: FitData) -> float | None:
     return max(tops) if tops else None
 
 
-def mount_starts(fit: OEFit, data: FitData) -> list[dict[str, float]]:
+def mount_starts(fit: OEFit, data: FitData, structure: Structure) -> list[dict[str, float]]:
     """Starts of a driven damper behind a compliant mount (see the module docstring).
 
     Examples
     --------
     >>> from types import SimpleNamespace
+    >>> from hystdisc.models import get_effect
     >>> t = np.arange(2000) / 1000.0
     >>> data = SimpleNamespace(t=[t], theta=[0.2 * np.sin(2 * np.pi * 2 * t)],
     ...                        y=[10.0 * np.sin(2 * np.pi * 2 * t)], mask=[t >= 0])
-    >>> starts = mount_starts(SimpleNamespace(params={"c_1": 1.0}), data)
+    >>> mount = get_effect("series_compliance").structure
+    >>> starts = mount_starts(SimpleNamespace(params={"c_1": 1.0}), data, mount)
     >>> len(starts), round(starts[0]["k_w"], 6), round(starts[0]["m_w"], 6)
     (16, 100.0, 0.009895)
     """
@@ -188,7 +206,7 @@ def mount_starts(fit: OEFit, data: FitData) -> list[dict[str, float]]:
         k = kr * k_damper
         m = k / (2.0 * np.pi * fr * f_top) ** 2
         start = dict(fit.params)
-        start.update({"m_w": m, "k_w": k, "c_w": 2.0 * zeta * np.sqrt(k * m)})
+        start.update(structure.values(k, m, zeta))
         out.append(start)
     return out
 
@@ -248,8 +266,9 @@ def score_structural(
         # its screened start reached the noise), so the cells are screened here and the
         # refit continues from these screened starts
         screened = screen_cells(data, fit, name, starts)
+        structure = _structure(name)
         for rss, per, params, cell in screened:
-            ranked.append((rss, per, {**params, "k_w_start": cell["k_w"]}))
+            ranked.append((rss, per, {**params, _start_key(structure): cell[structure.stiffness]}))
     else:
         for st in starts:
             rss, per = _rss_at(data, fit, name, st)
@@ -291,26 +310,28 @@ def score_structural(
         start=best,
         starts=[st for _, _, st in ranked],
         signature=signature,
-        cells=distinct_starts([c for *_, c in screened], N_STARTS) or None,
+        cells=distinct_starts([c for *_, c in screened], _structure(name), N_STARTS) or None,
     )
 
 
 def distinct_starts(
-    starts: list[dict], n: int, rel: float = 0.2, by: str = "frequency"
+    starts: list[dict], structure: Structure, n: int, rel: float = 0.2, by: str = "frequency"
 ) -> list[dict]:
-    """The first ``n`` of ``starts`` whose wheel frequencies ``sqrt(k_w / m_w)`` (``by=
-    "frequency"``, release) or stiffnesses ``k_w`` (``by="stiffness"``, a driven mount)
-    differ by more than ``rel`` from each other (the ranking's best of each).
+    """The first ``n`` of ``starts`` whose natural frequencies (``by="frequency"``, a
+    release's wheel) or stiffnesses (``by="stiffness"``, a driven mount) of the
+    ``structure`` differ by more than ``rel`` from each other (the ranking's best of each).
 
     Examples
     --------
-    >>> s = [{"k_w": 100.0, "m_w": 1.0}, {"k_w": 110.0, "m_w": 1.0}, {"k_w": 400.0, "m_w": 1.0}]
-    >>> [d["k_w"] for d in distinct_starts(s, 2)]
+    >>> from hystdisc.models.effects import Structure
+    >>> wheel = Structure(lambda terms, exp: None, "m", "k", "c")
+    >>> s = [{"k": 100.0, "m": 1.0}, {"k": 110.0, "m": 1.0}, {"k": 400.0, "m": 1.0}]
+    >>> [d["k"] for d in distinct_starts(s, wheel, 2)]
     [100.0, 400.0]
     """
 
     def key(st: dict) -> float:
-        return st["k_w"] if by == "stiffness" else np.sqrt(st["k_w"] / st["m_w"])
+        return st[structure.stiffness] if by == "stiffness" else structure.frequency(st)
 
     out: list[dict] = []
     for st in starts:
@@ -326,17 +347,19 @@ def screened_starts(
     data: FitData, fit: OEFit, name: str, starts: list[dict], n: int = N_STARTS
 ) -> list[dict]:
     """The ``n`` release starts to continue: the ``n`` lowest BIC after
-    :func:`screen_cells` (their screened parameters, with the grid start's ``k_w`` kept
-    as ``k_w_start``), distinct in frequency as :func:`distinct_starts` keeps them.
-    Starts that are already screened (they carry ``k_w_start``, from
+    :func:`screen_cells` (their screened parameters, with the grid start's stiffness kept
+    under :func:`_start_key`), distinct in frequency as :func:`distinct_starts` keeps
+    them. Starts that are already screened (they carry that key, from
     :func:`score_structural`) are not screened again."""
-    if starts and all("k_w_start" in st for st in starts):
-        return distinct_starts(starts, n)
+    structure = _structure(name)
+    key = _start_key(structure)
+    if starts and all(key in st for st in starts):
+        return distinct_starts(starts, structure, n)
     screened = [
-        {**params, "k_w_start": cell["k_w"]}
+        {**params, key: cell[structure.stiffness]}
         for _, _, params, cell in screen_cells(data, fit, name, starts)
     ]
-    return distinct_starts(screened, n) or distinct_starts(starts, n)
+    return distinct_starts(screened, structure, n) or distinct_starts(starts, structure, n)
 
 
 def screen_runs(data: FitData) -> list[int]:
@@ -364,9 +387,11 @@ def screen_cells(
     :func:`screen_runs`, then simulated on every run: ``(RSS, each run's RSS, the screened
     parameters, the cell's wheel values)``, lowest RSS first (failed screens left out)."""
     cells: dict[tuple, dict] = {}
-    for st in starts:  # the least damped start of each cell (a damped one drifts to m_w -> 0)
-        cell = (round(float(np.log(st["k_w"] / st["m_w"])), 3), round(float(st["m_w"]), 6))
-        if cell not in cells or st["c_w"] < cells[cell]["c_w"]:
+    sc = _structure(name)
+    for st in starts:  # the least damped start of each cell (a damped one drifts to m -> 0)
+        m = st[sc.inertia]
+        cell = (round(float(np.log(st[sc.stiffness] / m)), 3), round(float(m), 6))
+        if cell not in cells or st[sc.damping] < cells[cell][sc.damping]:
             cells[cell] = st
     runs = screen_runs(data)
     sub = data if len(runs) == data.n_runs else data.subset(runs)
@@ -430,7 +455,7 @@ def refit_structural(
     if data.exp.motion_imposed:
         n_starts = min(n_starts, N_STARTS_MOUNT)
     chosen = (
-        distinct_starts(starts, n_starts, by=by)
+        distinct_starts(starts, _structure(name), n_starts, by=by)
         if data.exp.motion_imposed
         else screened_starts(data, fit, name, starts, n_starts)
     )

@@ -12,8 +12,8 @@ from functools import cached_property
 
 import numpy as np
 
-from hystdisc.discovery.shapes import HysteresisShape
 from hystdisc.models import SIGN_EPS
+from hystdisc.models.shapes import HysteresisShape
 from hystdisc.registry import get_experiment
 from hystdisc.simulation import concat_runs, integrate_z_flat
 

@@ -41,8 +41,8 @@ import numpy as np
 
 from hystdisc.discovery.data import EqData
 from hystdisc.discovery.design import Design
-from hystdisc.discovery.shapes import SHAPES
 from hystdisc.discovery.varpro import scaled_lstsq
+from hystdisc.models.shapes import SHAPES
 from hystdisc.stats import bic_change
 
 #: The delay lowers the equation-error BIC by more than this to be called found.

@@ -13,7 +13,7 @@ transform_z_free` computes the columns that do not depend on ``z`` once, and
 :meth:`TorqueLibrary.refresh_z` rewrites only the ``z`` columns (every ``z`` term is
 linear in ``z``: its value is its value at ``z = 1`` times ``z``).
 
-The hysteresis side (the shapes) is in :mod:`hystdisc.discovery.shapes`.
+The hysteresis side (the shapes) is in :mod:`hystdisc.models.shapes`.
 
 Examples
 --------
@@ -34,8 +34,8 @@ import numpy as np
 from pysindy.feature_library.base import BaseFeatureLibrary, x_sequence_or_item
 from sklearn.utils.validation import check_is_fitted
 
-from hystdisc.discovery.shapes import SHAPES
 from hystdisc.models import TORQUE_TERM_NAMES, TORQUE_TERMS, Z_TORQUE_TERMS
+from hystdisc.models.shapes import SHAPES
 
 __all__ = [
     "DEFAULT_TORQUE_TERMS",

@@ -19,9 +19,9 @@ import pysindy as ps
 from hystdisc.discovery.data import EqData
 from hystdisc.discovery.design import Design
 from hystdisc.discovery.library import torque_terms_for
-from hystdisc.discovery.shapes import SHAPES
 from hystdisc.discovery.varpro import coef_dict, scaled_lstsq, varpro
 from hystdisc.models import HYSTERESIS_TERM_NAMES, TermModel
+from hystdisc.models.shapes import SHAPES
 from hystdisc.stats import bic
 
 #: Equation-error fits better than this (relative RSS; 1e-4 relative RMS) are equally exact:

@@ -7,9 +7,9 @@ from collections.abc import Sequence
 import numpy as np
 
 from hystdisc.discovery.data import EqData
-from hystdisc.discovery.shapes import FAMILY_SHAPE, SHAPES
 from hystdisc.discovery.varpro import coef_dict, grid_minima, varpro
 from hystdisc.models import HYSTERESIS_TERM_NAMES, TermModel
+from hystdisc.models.shapes import FAMILY_SHAPE, SHAPES
 from hystdisc.registry import get_family, term_family_names
 
 
@@ -157,6 +157,8 @@ def describe_structure(torque: Sequence[str], shape: str) -> str:
         fam = get_family(name)
         if FAMILY_SHAPE[name] == shape and set(fam.torque_terms) == tset:
             return fam.title
-    if shape == "dahl" and tset == {"theta_dot", "z", "i*z", "i*theta_dot"}:
-        return "modified Dahl (Dahl + i*theta_dot)"
+    for name in term_family_names():  # a named variant of a family (the seed's own)
+        fam = get_family(name)
+        if FAMILY_SHAPE[name] == shape and frozenset(tset) in fam.variants:
+            return fam.variants[frozenset(tset)]
     return f"{SHAPES[shape].name} hysteresis with torque terms {sorted(tset)}"

@@ -15,7 +15,7 @@ from scipy.optimize import minimize
 
 from hystdisc.discovery.data import EqData
 from hystdisc.discovery.design import Design
-from hystdisc.discovery.shapes import SHAPES
+from hystdisc.models.shapes import SHAPES
 
 
 def scaled_lstsq(F: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, float]:
@@ -60,7 +60,7 @@ def varpro(
     eq : EqData
         Equation-error data.
     shape_name : str
-        Key of :data:`~hystdisc.discovery.shapes.SHAPES`.
+        Key of :data:`~hystdisc.models.shapes.SHAPES`.
     terms : sequence of str
         Torque terms (the design's columns).
     s0 : ndarray, optional

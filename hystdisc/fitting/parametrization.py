@@ -114,22 +114,23 @@ class FamilyParametrization(Parametrization):
         self.family = get_family(family) if isinstance(family, str) else family
         self.laws = self.family.check_laws(laws)
         self.fixed = dict(fixed or {})
-        bw = self.family.name.startswith("bouc-wen")
         if normalization not in ("z_sat", "alpha_1"):
             raise HystdiscError(
                 f"unknown normalization '{normalization}'; fix: use z_sat or alpha_1"
             )
-        if bw and normalization == "alpha_1":
-            # z in torque units (alpha_1 = 1), delta free: for loops that never saturate
-            self.fixed.setdefault("alpha_1", 1.0)
+        # a scale the family does not have is its own (z_sat)
+        norm = normalization if normalization in self.family.normalizations else "z_sat"
+        for k, v in self.family.fixed_by(norm).items():  # z in torque units: alpha_1 = 1
+            self.fixed.setdefault(k, v)
         self.experiment = experiment
         self.effects = tuple(effects)
-        self.norm = normalization if bw else "z_sat"
-        self.derived = ["delta"] if bw and normalization == "z_sat" else []
+        self.norm = norm
+        self.derived = list(self.family.derived_names(norm))
         self.normalization = (
-            "alpha_1 = 1 (z in torque units)"
-            if bw and normalization == "alpha_1"
-            else self.family.normalization
+            self.family.normalization
+            if norm == "z_sat"
+            else ", ".join(f"{k} = {v:g}" for k, v in self.family.fixed_by(norm).items())
+            + " (z in torque units)"
         )
         specs: list[Param] = [
             p
@@ -159,9 +160,7 @@ class FamilyParametrization(Parametrization):
     def params(self, x):
         p = dict(zip(self.names, map(float, x), strict=True))
         p.update(self.fixed)
-        if self.derived:
-            p["delta"] = p["beta"] + p["gamma"]
-        return p
+        return self.family.complete(p, self.norm)
 
     def rigid_terms(self, x) -> TermModel:
         """The term form of the family, rig spring and term effects: the whole model here;
@@ -408,53 +407,3 @@ def family_parametrization(
         else FamilyParametrization
     )
     return cls(family, experiment, start, tuple(effects), fixed, normalization, laws)
-
-
-def in_torque_units(family: str, params: dict[str, float]) -> dict[str, float]:
-    """``params`` of a Bouc-Wen form with z rescaled to torque units (``alpha_1 = 1``).
-
-    The same model: z is multiplied by ``a = alpha_1``, so ``delta``, ``beta`` and
-    ``gamma`` take the powers of ``a`` their terms carry and ``alpha_2`` is divided by it
-    (the ``alpha_1`` normalization of :class:`FamilyParametrization`). Parameters without
-    a positive ``alpha_1`` get ``alpha_1 = 1`` alone.
-
-    Examples
-    --------
-    >>> p = {"alpha_1": 2.0, "alpha_2": 1.0, "delta": 3.0, "beta": 2.0, "gamma": 1.0, "n": 1.0}
-    >>> q = in_torque_units("bouc-wen", p)
-    >>> q["alpha_1"], q["alpha_2"], q["delta"], q["beta"], q["gamma"]
-    (1.0, 0.5, 6.0, 2.0, 0.5)
-    """
-    q = dict(params)
-    a = params.get("alpha_1", 0.0)
-    if np.isfinite(a) and a > 0:
-        n = params["n"]
-        q["delta"] = params["delta"] * a
-        q["beta"] = params["beta"] * a ** (1.0 - n)
-        q["gamma"] = params["gamma"] * a ** ((1.0 - n) if family == "bouc-wen-std" else -n)
-        q["alpha_2"] = params.get("alpha_2", 0.0) / a
-    q["alpha_1"] = 1.0
-    return q
-
-
-def z_scale(family: str, start: dict[str, float]) -> tuple[dict[str, float], str]:
-    """The scale of z for the output-error fit of ``family`` started at ``start``: the
-    start (rescaled when needed) and the normalization of :class:`FamilyParametrization`.
-
-    Bouc-Wen loops that saturate are fitted with ``z_sat = 1``; loops that never saturate
-    (``beta + gamma <= 0``) have no such scale, so z is taken in torque units
-    (``alpha_1 = 1``) and the start is rescaled to it (:func:`in_torque_units`).
-
-    Examples
-    --------
-    >>> p = {"alpha_1": 2.0, "alpha_2": 1.0, "delta": 3.0, "beta": -2.0, "gamma": -1.0, "n": 1.0}
-    >>> z_scale("bouc-wen", p)[1], z_scale("dahl", {})[1]
-    ('alpha_1', 'z_sat')
-    """
-    fam = get_family(family)
-    if not fam.name.startswith("bouc-wen"):
-        return start, "z_sat"
-    zs = fam.z_sat(start["delta"], start["beta"], start["gamma"], start["n"])
-    if np.isfinite(zs) and zs > 0:
-        return start, "z_sat"
-    return in_torque_units(fam.name, start), "alpha_1"

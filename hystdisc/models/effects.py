@@ -5,12 +5,53 @@ See doc/design.rst section 6 (closing the loop) for the catalogue and how it is 
 
 from __future__ import annotations
 
-import importlib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
 
 from hystdisc.models.params import BIG, Param
 from hystdisc.models.terms import SHEAR_M0, SHEAR_TERM, TermModel
+
+
+@dataclass(frozen=True)
+class Structure:
+    """How a structural effect is realized: a state-space model built around the rest of
+    the model, and the three parameters of its internal degree of freedom (an inertia, a
+    stiffness and a damping), by which the closing loop lays its grid of starts
+    (:mod:`hystdisc.closing.structural`).
+
+    Attributes
+    ----------
+    build : callable
+        ``build(terms, experiment)``: the state-space model around ``terms`` (the damper,
+        rig spring and term effects) for an experiment type.
+    inertia, stiffness, damping : str
+        The names of the degree of freedom's inertia, stiffness and damping parameters.
+
+    Examples
+    --------
+    >>> s = Structure(lambda terms, exp: None, "m", "k", "c")
+    >>> v = s.values(stiffness=100.0, inertia=1.0, damping_ratio=0.5)
+    >>> v, round(s.frequency(v), 4)
+    ({'m': 1.0, 'k': 100.0, 'c': 10.0}, 1.5915)
+    """
+
+    build: Callable[[TermModel, str], Any]
+    inertia: str
+    stiffness: str
+    damping: str
+
+    def values(self, stiffness: float, inertia: float, damping_ratio: float) -> dict[str, float]:
+        """The three parameters for a stiffness, an inertia and a damping ratio."""
+        c = 2.0 * damping_ratio * np.sqrt(stiffness * inertia)
+        return {self.inertia: inertia, self.stiffness: stiffness, self.damping: float(c)}
+
+    def frequency(self, values: Mapping[str, float]) -> float:
+        """The natural frequency (Hz) of the degree of freedom at ``values``."""
+        return float(np.sqrt(values[self.stiffness] / values[self.inertia]) / (2.0 * np.pi))
+
 
 #: The roles an effect may declare (:attr:`Effect.roles`).
 ROLES = ("spring", "current_law", "measurement")
@@ -36,11 +77,12 @@ class Effect:
     hint : str
         What the data point at when they want the effect with a sign outside its
         admissible bounds (it is then reported, not added).
-    system : str
-        Empty for an effect in term form. A *structural* effect adds states instead of
-        torque terms: ``module:Class`` of the :class:`~hystdisc.models.system.StateSpaceModel`
-        that realizes it (built from the rest of the model in term form, see
-        :meth:`system_model`); it has no ``terms`` and is fitted as a state-space system.
+    structure : Structure or None
+        None for an effect in term form. A *structural* effect adds states instead of
+        torque terms: its :class:`Structure` builds the
+        :class:`~hystdisc.models.system.StateSpaceModel` that realizes it around the rest of
+        the model in term form (:meth:`system_model`); it has no ``terms`` and is fitted as
+        a state-space system.
     significance : tuple of str
         The parameters whose significance (value over standard error) says the effect is
         there; empty: all of them.
@@ -79,7 +121,7 @@ class Effect:
     to_torque: Callable[[Mapping[str, float], float], dict[str, float]]
     from_torque: Callable[[Mapping[str, float], float], dict[str, float]]
     hint: str = ""
-    system: str = ""
+    structure: Structure | None = None
     significance: tuple[str, ...] = ()
     experiments: tuple[str, ...] = ()
     rig: bool = False
@@ -87,7 +129,7 @@ class Effect:
     @property
     def structural(self) -> bool:
         """The effect adds states (a state-space model realizes it), not torque terms."""
-        return bool(self.system)
+        return self.structure is not None
 
     def system_model(self, terms, experiment: str = "release"):
         """The state-space model of a structural effect around ``terms`` (the rest of the
@@ -95,14 +137,13 @@ class Effect:
 
         Examples
         --------
-        >>> from hystdisc.models import Model
-        >>> SERIES_COMPLIANCE.system_model(Model("dahl").to_terms()).states
+        >>> from hystdisc.models import Model, get_effect
+        >>> get_effect("series_compliance").system_model(Model("dahl").to_terms()).states
         ('theta', 'theta_dot', 'z', 'y', 'y_dot')
         """
-        if not self.system:
+        if self.structure is None:
             raise ValueError(f"{self.name} is not a structural effect")
-        module, _, attr = self.system.partition(":")
-        return getattr(importlib.import_module(module), attr)(terms, experiment)
+        return self.structure.build(terms, experiment)
 
     exponents: tuple[tuple[str, str], ...] = ()
     roles: tuple[str, ...] = ()
@@ -260,52 +301,6 @@ CHANNEL_DELAY = Effect(
     roles=("measurement",),
     delay_param="tau_d",
 )
-
-
-SERIES_COMPLIANCE = Effect(
-    "series_compliance",
-    (
-        Param(
-            "m_w",
-            "kg*m^2 per unit J (release); kg (driven)",
-            1e-9,
-            BIG,
-            0.2,
-            "wheel inertia, or the damper end's mass (series mass)",
-        ),
-        Param(
-            "k_w",
-            "N*m/rad per unit J (release); N/m (driven)",
-            1e-9,
-            BIG,
-            5000.0,
-            "wheel (tyre) or mount stiffness",
-        ),
-        Param(
-            "c_w",
-            "N*m*s/rad per unit J (release); N*s/m (driven)",
-            0.0,
-            BIG,
-            5.0,
-            "wheel (tyre) or mount damping",
-        ),
-    ),
-    (),
-    "an internal degree of freedom: the damper acts on a wheel on a spring and dashpot "
-    "(release: k_w, c_w, inertia m_w per unit beam inertia), not on the ground; or the "
-    "damper sits behind a compliant mount (driven: k_w, c_w between the measured motion "
-    "and the damper end of mass m_w)",
-    lambda p, ks: {},
-    lambda c, ks: {},
-    system="hystdisc.models.wheel:series_compliance_system",
-    significance=("k_w",),
-    experiments=("release", "driven"),
-    rig=True,
-)
-"""Series compliance (structural: :func:`~hystdisc.models.wheel.series_compliance_system`):
-the SAS beam on a compliant wheel (release) or the damper behind a compliant mount
-(driven). Its significance is that of the compliance ``1/k_w`` (the same z-score as
-``k_w``): a stiff wheel or mount whose ``k_w`` the data do not bound is the model without it."""
 
 
 SHEAR_THINNING = Effect(

@@ -59,14 +59,39 @@ from hystdisc.models.compiled import (
     term_vector,
     vector_rate,
 )
-from hystdisc.models.effects import SERIES_COMPLIANCE
-from hystdisc.models.params import RIG_PARAMS
+from hystdisc.models.effects import Effect, Structure
+from hystdisc.models.params import BIG, RIG_PARAMS, Param
 from hystdisc.models.system import StateSpaceModel
 from hystdisc.models.terms import SIGN_EPS, TermModel
 from hystdisc.registry import get_experiment, get_family
 
 #: The wheel's parameters (per unit beam inertia): those of the ``series_compliance`` effect.
-WHEEL_PARAMS = SERIES_COMPLIANCE.params
+WHEEL_PARAMS: tuple[Param, ...] = (
+    Param(
+        "m_w",
+        "kg*m^2 per unit J (release); kg (driven)",
+        1e-9,
+        BIG,
+        0.2,
+        "wheel inertia, or the damper end's mass (series mass)",
+    ),
+    Param(
+        "k_w",
+        "N*m/rad per unit J (release); N/m (driven)",
+        1e-9,
+        BIG,
+        5000.0,
+        "wheel (tyre) or mount stiffness",
+    ),
+    Param(
+        "c_w",
+        "N*m*s/rad per unit J (release); N*s/m (driven)",
+        0.0,
+        BIG,
+        5.0,
+        "wheel (tyre) or mount damping",
+    ),
+)
 
 #: Torque terms of the rig (beam to ground), not of the damper.
 RIG_TERMS = ("theta", "theta^3", "1")
@@ -284,3 +309,24 @@ def series_compliance_system(terms: TermModel, experiment: str = "release") -> S
     if get_experiment(experiment).motion_imposed:
         return TermsOnCompliantMount(terms)
     return TermsOnCompliantWheel(terms)
+
+
+SERIES_COMPLIANCE = Effect(
+    "series_compliance",
+    WHEEL_PARAMS,
+    (),
+    "an internal degree of freedom: the damper acts on a wheel on a spring and dashpot "
+    "(release: k_w, c_w, inertia m_w per unit beam inertia), not on the ground; or the "
+    "damper sits behind a compliant mount (driven: k_w, c_w between the measured motion "
+    "and the damper end of mass m_w)",
+    lambda p, ks: {},
+    lambda c, ks: {},
+    structure=Structure(series_compliance_system, "m_w", "k_w", "c_w"),
+    significance=("k_w",),
+    experiments=("release", "driven"),
+    rig=True,
+)
+"""Series compliance (structural: :func:`series_compliance_system`): the SAS beam on a
+compliant wheel (release) or the damper behind a compliant mount (driven). Its
+significance is that of the compliance ``1/k_w`` (the same z-score as ``k_w``): a stiff
+wheel or mount whose ``k_w`` the data do not bound is the model without it."""

@@ -10,7 +10,6 @@ from __future__ import annotations
 from hystdisc.discovery import family_start
 from hystdisc.fitting import FamilyParametrization, OEFit, OutputErrorFitter
 from hystdisc.fitting.multistart import system_fit
-from hystdisc.fitting.parametrization import z_scale
 from hystdisc.models import FAMILIES
 from hystdisc.pipeline.state import State
 
@@ -24,7 +23,7 @@ def current_fixed(state: State, name: str) -> dict[str, float]:
 def family_par(state: State, name: str, start: dict[str, float]) -> FamilyParametrization:
     """Family ``name`` started at ``start``: its z scale chosen there, the current terms
     held at 0 at a single current, the measurement chain's effects every family carries."""
-    start, norm = z_scale(name, {**start, **state.chain})
+    start, norm = FAMILIES[name].z_scale({**start, **state.chain})
     return FamilyParametrization(
         name, state.experiment, start, tuple(state.chain_effects), current_fixed(state, name),
         norm,

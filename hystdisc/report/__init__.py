@@ -69,13 +69,13 @@ Examples
 True
 """
 
-from hystdisc.report.markup import FAMILY_COLORS, SECTIONS
+from hystdisc.report.markup import SECTIONS, color_of
 from hystdisc.report.signals import fit_residuals, fit_signals, model_loops, shown_runs
 from hystdisc.report.source import ReportData, load_report_data, report_data, report_data_path
 from hystdisc.report.writing import check_report_path, markdown_path, render_report, write_report
 
 __all__ = [
-    "FAMILY_COLORS",
+    "color_of",
     "SECTIONS",
     "ReportData",
     "load_report_data",

@@ -5,24 +5,17 @@ from __future__ import annotations
 
 from hystdisc.registry import family_names, get_family
 from hystdisc.report.markup import ci_text, esc, md_cell, md_line, new_figure, num
-from hystdisc.results import FamilyResult, ParameterResult
+from hystdisc.results import FamilyResult
 
-#: The seed's section 5: per torque term, the parameter of each family that multiplies it
-#: (None: the family has no such term), and the term in term form.
-#: Spencer's rows are its post-yield damping and yield torque (the combinations through the
-#: internal dashpot that match the others' terms); tanh's yield torque multiplies
-#: ``tanh(...)``, which saturates at 1 like z.
-CORRESPONDENCE_FAMILIES = ("dahl", "bouc-wen", "bouc-wen-std", "lugre", "spencer", "tanh")
+#: The seed's section 5: the torque terms compared across the families (label, term); each
+#: family declares the parameter that multiplies each term
+#: (:attr:`~hystdisc.models.Family.correspondence`; a term it lacks is 0).
 CORRESPONDENCE = (
-    ("θ̇ (viscous)", ("k_x", "c_1", "c_1", "sigma_2", "c_post_0", "c_a"), "theta_dot"),
-    ("z (hysteretic, 0 A)", ("k_wa", "alpha_1", "alpha_1", "sigma_a", "alpha_a", "alpha_a"), "z"),
-    (
-        "i·z (hysteretic, per A)",
-        ("k_wb", "alpha_2", "alpha_2", "sigma_0", "alpha_b", "alpha_b"),
-        "i*z",
-    ),
-    ("i·θ̇ (viscous, per A)", (None, "c_2", "c_2", "sigma_b", "c0_b", "c_b"), "i*theta_dot"),
-    ("ż (LuGre sigma_1; term |θ̇|·z)", (None, None, None, "sigma_1", None, None), "|theta_dot|*z"),
+    ("θ̇ (viscous)", "theta_dot"),
+    ("z (hysteretic, 0 A)", "z"),
+    ("i·z (hysteretic, per A)", "i*z"),
+    ("i·θ̇ (viscous, per A)", "i*theta_dot"),
+    ("ż (LuGre sigma_1; term |θ̇|·z)", "|theta_dot|*z"),
 )
 #: Units of the rig's own parameters (the families' units come from their definitions).
 RIG_UNITS = {"k_s": "N*m/rad per unit J", "J": "kg*m^2"}
@@ -133,7 +126,7 @@ class ComparisonSections:
         d = self.res
         self.h2("correspondence")
         fams = d.families
-        cols = [f for f in CORRESPONDENCE_FAMILIES if f in fams]
+        cols = [f for f in fams if f in family_names() and get_family(f).correspondence]
         self.p(
             "The seed's comparison of the torque equations (its section 5), filled with the "
             "fitted values and their 95 % intervals. The last column is the discovered "
@@ -146,11 +139,10 @@ class ComparisonSections:
         disc_tq = tm.torque if tm is not None else {}
         header = ["torque term", *[_family_title(c) for c in cols], "discovered (term form)"]
         rows = []
-        for label, names, term in CORRESPONDENCE:
+        for label, term in CORRESPONDENCE:
             row = [label]
             for c in cols:
-                pname = names[CORRESPONDENCE_FAMILIES.index(c)]
-                row.append(_param_cell(fams[c], pname))
+                row.append(_param_cell(fams[c], get_family(c).correspondence.get(term)))
             row.append(num(disc_tq.get(term), ".5g") if term in disc_tq else "0")
             rows.append(row)
         # scale-free: hysteretic torque at saturation
@@ -160,7 +152,8 @@ class ComparisonSections:
         ):
             row = [label]
             for c in cols:
-                row.append(num(_saturation_torque(c, fams[c].parameters, which), ".5g"))
+                values = {k: p.value for k, p in fams[c].parameters.items() if p is not None}
+                row.append(num(get_family(c).saturation_torque(values, which), ".5g"))
             row.append("–")
             rows.append(row)
         self.table(header, rows, left=len(header))
@@ -186,27 +179,6 @@ def _param_cell(entry: FamilyResult, pname: str | None) -> str:
         return "–"
     flag = "" if p.identifiable else " (not identifiable)"
     return f"{pname} = {num(p.value, '.5g')} {ci_text(p.ci95, '.3g')}{flag}"
-
-
-def _saturation_torque(family: str, params: dict[str, ParameterResult], which: str) -> float | None:
-    """Hysteretic torque at z saturation, at 0 A (``which='a'``) or per A (``'b'``)."""
-    v = {k: (p.value if p is not None else None) for k, p in params.items()}
-    try:
-        if family == "dahl":
-            return v["k_wa"] if which == "a" else v["k_wb"]
-        if family in ("bouc-wen", "bouc-wen-std"):
-            return v["alpha_1"] if which == "a" else v["alpha_2"]
-        if family == "spencer":  # through the internal dashpot: alpha c1 / (c0 + c1)
-            a0, a1 = v["alpha_yield_0"], v["alpha_yield_1"]
-            return a0 if which == "a" else a1 - a0
-        if family == "tanh":
-            return v["alpha_a"] if which == "a" else v["alpha_b"]
-        if family == "lugre":
-            zsat = 1.0 / (v["sigma_0"] * v["a_0"])
-            return v["sigma_a"] * zsat if which == "a" else v["sigma_0"] * zsat
-    except (KeyError, TypeError, ZeroDivisionError):
-        return None
-    return None
 
 
 def _heldout_text(d) -> str:

@@ -11,6 +11,8 @@ import textwrap
 from collections.abc import Sequence
 from typing import Any
 
+from hystdisc.registry import family_names, get_family
+
 #: (id, title) of every section, in order; each is an ``<h2 id=...>`` of the HTML.
 SECTIONS: tuple[tuple[str, str], ...] = (
     ("summary", "Summary"),
@@ -27,18 +29,23 @@ SECTIONS: tuple[tuple[str, str], ...] = (
     ("what-to-test-next", "What to test next"),
 )
 
-#: Colours of the families in every figure (the seed's: Dahl blue, Bouc-Wen green, LuGre red).
-FAMILY_COLORS = {
-    "bingham": "tab:purple",
-    "dahl": "tab:blue",
-    "lugre": "tab:red",
-    "bouc-wen": "tab:green",
-    "bouc-wen-std": "tab:olive",
-    "spencer": "tab:cyan",
-    "tanh": "tab:pink",
-    "discovered": "tab:brown",
-    "final": "tab:orange",
-}
+#: Colours of the report's own curves (a family's is its ``color``: :func:`color_of`).
+OTHER_COLORS = {"discovered": "tab:brown", "final": "tab:orange"}
+
+
+def color_of(key: str) -> str | None:
+    """The colour of a family's curves (the family declares it), of the discovered
+    structure or of the final model; None for anything else.
+
+    Examples
+    --------
+    >>> color_of("dahl"), color_of("final"), color_of("nothing")
+    ('tab:blue', 'tab:orange', None)
+    """
+    if key in OTHER_COLORS:
+        return OTHER_COLORS[key]
+    return get_family(key).color if key in family_names() else None
+
 
 CSS = """
 body{font-family:system-ui,-apple-system,"Segoe UI",Helvetica,Arial,sans-serif;margin:0 auto;

@@ -6,7 +6,7 @@ import numpy as np
 
 from hystdisc import __version__
 from hystdisc.report.markup import (
-    FAMILY_COLORS,
+    color_of,
     currents_text,
     esc,
     figure_legend,
@@ -222,7 +222,7 @@ class OverviewSections:
                     ylabel=ylabel,
                     title=f"run {s['name']}, {s['current']:g} A",
                     legend=False,
-                    color=FAMILY_COLORS.get(key),
+                    color=color_of(key),
                 )
                 axes[row, 1].set_title("residual", fontsize="medium")
                 axes[row, 1].set_ylabel("")

@@ -11,7 +11,7 @@ import numpy as np
 from hystdisc.data import estimate_noise
 from hystdisc.errors import HystdiscError
 from hystdisc.registry import get_experiment
-from hystdisc.report.markup import FAMILY_COLORS
+from hystdisc.report.markup import color_of
 from hystdisc.stats import masked, sampling_rate
 
 
@@ -251,7 +251,7 @@ def model_loops(
             }
         )
         for key in keys:
-            style = {"color": FAMILY_COLORS.get(key, None), "lw": 1.1, "ls": "--"}
+            style = {"color": color_of(key), "lw": 1.1, "ls": "--"}
             label = fit_label(disc, key)
             if exp.motion_imposed:
                 item = {

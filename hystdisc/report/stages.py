@@ -4,7 +4,7 @@ residual spectrum)."""
 from __future__ import annotations
 
 from hystdisc.registry import effect_names, get_effect
-from hystdisc.report.markup import FAMILY_COLORS, ci_text, new_figure, num
+from hystdisc.report.markup import ci_text, color_of, new_figure, num
 from hystdisc.results import ResidualSummary
 
 
@@ -185,7 +185,7 @@ class StageSections:
                 sp["fs"],
                 ax=ax,
                 label=before["label"],
-                color=FAMILY_COLORS.get(before["key"]),
+                color=color_of(before["key"]),
                 alpha=0.6,
             )
         after = sp["after"]
@@ -196,7 +196,7 @@ class StageSections:
             noise_std=self.rd.noise_std,
             dominant_hz=res.dominant_hz if res else None,
             label=after["label"],
-            color=FAMILY_COLORS.get(after["key"]),
+            color=color_of(after["key"]),
         )
         ax.set_title(
             f"residual spectrum (Welch, averaged over runs); whiteness p = "

@@ -55,6 +55,47 @@ class Family:
     #: equation-error stage: on a coarse encoder stage 1 can miss every basin.
     start_from: tuple[str, ...] = ()
 
+    #: Named variants of the family: a set of torque terms on its shape -> the name a
+    #: discovered structure with exactly those terms is given (the seed's "modified Dahl").
+    variants: Mapping[frozenset[str], str] = {}
+    #: The colour of the family in every figure (matplotlib's).
+    color: str = "tab:gray"
+    #: Its row of the seed's term correspondence (section 5): torque term -> the
+    #: parameter (or reported combination) that multiplies it (the report's table).
+    correspondence: Mapping[str, str] = {}
+    #: The scales of its state an output-error fit may use (:meth:`z_scale`): ``"z_sat"``
+    #: (the family's own normalization), and for a family whose state has no saturation of
+    #: its own in some loops, ``"alpha_1"`` (z in torque units).
+    normalizations: tuple[str, ...] = ("z_sat",)
+
+    def z_scale(self, start: Mapping[str, float]) -> tuple[dict[str, float], str]:
+        """The scale of the state for a fit started at ``start``: the start (rescaled when
+        needed) and one of :attr:`normalizations`."""
+        return dict(start), "z_sat"
+
+    def derived_names(self, normalization: str) -> tuple[str, ...]:
+        """Parameters the ``normalization`` makes a function of the others (not fitted)."""
+        return ()
+
+    def fixed_by(self, normalization: str) -> dict[str, float]:
+        """Parameters the ``normalization`` holds at a value."""
+        return {}
+
+    def complete(self, p: dict[str, float], normalization: str) -> dict[str, float]:
+        """``p`` with the :meth:`derived_names` of ``normalization`` filled in."""
+        return p
+
+    def in_torque_units(self, params: Mapping[str, float]) -> dict[str, float]:
+        """``params`` with the state rescaled to torque units (the ``"alpha_1"`` scale);
+        unchanged for a family that has no such scale."""
+        return dict(params)
+
+    def saturation_torque(self, p: Mapping[str, float | None], which: str) -> float | None:
+        """The hysteretic torque at the state's saturation for the parameters ``p``, at
+        0 A (``which="a"``) or per ampere (``"b"``): what the report compares across the
+        families; None when the family has none."""
+        return None
+
     def param_names(self) -> list[str]:
         """Names of the damper parameters (rig parameters excluded)."""
         return [p.name for p in self.params]

@@ -10,6 +10,7 @@ from hystdisc.models.terms import TermModel
 class Bingham(Family):
     name = "bingham"
     title = "Bingham"
+    color = "tab:purple"
     params = param_table("""
         # name  unit           lower  upper  default  doc
         c_a     N*m*s/rad      0      BIG    0.8      passive viscous damping

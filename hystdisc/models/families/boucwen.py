@@ -30,6 +30,9 @@ class BoucWen(Family):
 
     name = "bouc-wen"
     title = "Bouc-Wen (seed form)"
+    color = "tab:green"
+    correspondence = {"theta_dot": "c_1", "z": "alpha_1", "i*z": "alpha_2", "i*theta_dot": "c_2"}
+    normalizations = ("z_sat", "alpha_1")
     params = param_table(_PARAMS.format(beta=10, gamma=10, gamma_shape="z |z|^n", n=1))
     normalization = "z_sat = 1 (delta = beta + gamma)"
     current_params = ("alpha_2", "c_2")
@@ -52,6 +55,65 @@ class BoucWen(Family):
             {"theta_dot": p["delta"], "theta_dot*|z|^n": -p["beta"], self._gamma_term: -p["gamma"]},
             n=p["n"],
         )
+
+    def z_scale(self, start: Mapping[str, float]) -> tuple[dict[str, float], str]:
+        """Loops that saturate are fitted with ``z_sat = 1``; loops that never saturate
+        (``beta + gamma <= 0``) have no such scale, so z is taken in torque units
+        (``alpha_1 = 1``) and the start is rescaled to it (:meth:`in_torque_units`).
+
+        Examples
+        --------
+        >>> p = {"alpha_1": 2.0, "alpha_2": 1.0, "delta": 3.0, "beta": -2.0, "gamma": -1.0,
+        ...      "n": 1.0}
+        >>> BOUC_WEN.z_scale(p)[1], BOUC_WEN.z_scale({**p, "gamma": 6.0})[1]
+        ('alpha_1', 'z_sat')
+        """
+        zs = self.z_sat(start["delta"], start["beta"], start["gamma"], start["n"])
+        if np.isfinite(zs) and zs > 0:
+            return dict(start), "z_sat"
+        return self.in_torque_units(start), "alpha_1"
+
+    def derived_names(self, normalization: str) -> tuple[str, ...]:
+        """``z_sat = 1``: ``delta = beta + gamma`` is not fitted."""
+        return ("delta",) if normalization == "z_sat" else ()
+
+    def fixed_by(self, normalization: str) -> dict[str, float]:
+        """``alpha_1 = 1``: z in torque units."""
+        return {"alpha_1": 1.0} if normalization == "alpha_1" else {}
+
+    def complete(self, p: dict[str, float], normalization: str) -> dict[str, float]:
+        if normalization == "z_sat":
+            p["delta"] = p["beta"] + p["gamma"]
+        return p
+
+    def in_torque_units(self, params: Mapping[str, float]) -> dict[str, float]:
+        """``params`` with z rescaled to torque units (``alpha_1 = 1``).
+
+        The same model: z is multiplied by ``a = alpha_1``, so ``delta``, ``beta`` and
+        ``gamma`` take the powers of ``a`` their terms carry and ``alpha_2`` is divided
+        by it. Parameters without a positive ``alpha_1`` get ``alpha_1 = 1`` alone.
+
+        Examples
+        --------
+        >>> p = {"alpha_1": 2.0, "alpha_2": 1.0, "delta": 3.0, "beta": 2.0, "gamma": 1.0,
+        ...      "n": 1.0}
+        >>> q = BOUC_WEN.in_torque_units(p)
+        >>> q["alpha_1"], q["alpha_2"], q["delta"], q["beta"], q["gamma"]
+        (1.0, 0.5, 6.0, 2.0, 0.5)
+        """
+        q = dict(params)
+        a = params.get("alpha_1", 0.0)
+        if np.isfinite(a) and a > 0:
+            n = params["n"]
+            q["delta"] = params["delta"] * a
+            q["beta"] = params["beta"] * a ** (1.0 - n)
+            q["gamma"] = params["gamma"] * a ** (1.0 - n - self.gamma_extra_degree)
+            q["alpha_2"] = params.get("alpha_2", 0.0) / a
+        q["alpha_1"] = 1.0
+        return q
+
+    def saturation_torque(self, p: Mapping[str, float | None], which: str) -> float | None:
+        return p.get("alpha_1") if which == "a" else p.get("alpha_2")
 
     def z_sat(self, delta: float, beta: float, gamma: float, n: float) -> float:
         """Saturation value of z on a monotone loading branch (root of delta = beta s^n + gamma s^(n+1))."""
@@ -147,6 +209,7 @@ class BoucWenStd(BoucWen):
 
     name = "bouc-wen-std"
     title = "Bouc-Wen (standard form)"
+    color = "tab:olive"
     params = param_table(_PARAMS.format(beta=5, gamma=15, gamma_shape="z |z|^(n-1)", n=2))
     hysteresis_terms = ("theta_dot", "theta_dot*|z|^n", "|theta_dot|*z*|z|^(n-1)")
     _gamma_term = "|theta_dot|*z*|z|^(n-1)"

@@ -10,6 +10,12 @@ from hystdisc.models.terms import TermModel
 class Dahl(Family):
     name = "dahl"
     title = "Dahl"
+    color = "tab:blue"
+    variants = {
+        frozenset({"theta_dot", "z", "i*z", "i*theta_dot"}): "modified Dahl (Dahl + i*theta_dot)"
+    }
+    correspondence = {"theta_dot": "k_x", "z": "k_wa", "i*z": "k_wb"}
+
     params = param_table("""
         # name  unit       lower  upper  default  doc
         k_x     N*m*s/rad  0      BIG    0.8      viscous damping
@@ -44,6 +50,10 @@ class Dahl(Family):
             "k_wb": g("i*z", 0.0) * s,
             "rho": b2,
         }
+
+    def saturation_torque(self, p, which):
+        """``w`` saturates at 1: the torque there is ``k_wa`` (0 A) and ``k_wb`` (per A)."""
+        return p.get("k_wa") if which == "a" else p.get("k_wb")
 
     def equations(self):
         return "T = k_x*theta_dot + (k_wa + k_wb*i)*z\ndz/dt = rho*(theta_dot - |theta_dot|*z)"

@@ -10,6 +10,10 @@ from hystdisc.models.terms import TermModel
 class LuGre(Family):
     name = "lugre"
     title = "LuGre"
+    color = "tab:red"
+    correspondence = {"theta_dot": "sigma_2", "z": "sigma_a", "i*z": "sigma_0",
+                      "i*theta_dot": "sigma_b", "|theta_dot|*z": "sigma_1"}  # fmt: skip
+
     params = param_table("""
         # name   unit           lower  upper  default  doc
         sigma_a  N*m/rad        0      BIG    10       passive stiffness of z
@@ -62,6 +66,15 @@ class LuGre(Family):
             "sigma_b": g("i*theta_dot", 0.0),
             "a_0": r / sigma_0 if sigma_0 != 0.0 else float("inf"),
         }
+
+    def saturation_torque(self, p, which):
+        """``z`` saturates at ``1 / (sigma_0 a_0)``: ``sigma_a`` (0 A) and ``sigma_0`` (per A)
+        times it."""
+        try:
+            zsat = 1.0 / (p["sigma_0"] * p["a_0"])
+            return p["sigma_a"] * zsat if which == "a" else p["sigma_0"] * zsat
+        except (KeyError, TypeError, ZeroDivisionError):
+            return None
 
     def equations(self):
         return (

@@ -230,6 +230,11 @@ class Spencer(SystemFamily):
 
     name = "spencer"
     title = "Spencer (Bouc-Wen with an internal dashpot)"
+    color = "tab:cyan"
+    # its rows are its post-yield damping and yield torque (the combinations through the
+    # internal dashpot that match the others' terms)
+    correspondence = {"theta_dot": "c_post_0", "z": "alpha_a", "i*z": "alpha_b",
+                      "i*theta_dot": "c0_b"}  # fmt: skip
     params = param_table(_PARAMS)
     normalization = "z_sat = 1 (gamma = A - beta)"
     current_params = ("alpha_b", "c0_b", "c1_b")
@@ -275,6 +280,14 @@ class Spencer(SystemFamily):
                 p.get("k1", 0.0),
             ]
         )
+
+    def saturation_torque(self, p, which):
+        """Through the internal dashpot: the yield torque ``alpha c1 / (c0 + c1)`` at 0 A
+        and its increase to 1 A."""
+        a0, a1 = p.get("alpha_yield_0"), p.get("alpha_yield_1")
+        if a0 is None:
+            return None
+        return a0 if which == "a" else (None if a1 is None else a1 - a0)
 
     def derived(self, p: Mapping[str, float]) -> dict[str, float]:
         """Combinations the data identify when ``c1`` is not: the post-yield damping

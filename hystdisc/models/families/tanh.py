@@ -123,6 +123,10 @@ class Tanh(SystemFamily):
 
     name = "tanh"
     title = "hyperbolic tangent (Kwok et al.)"
+    color = "tab:pink"
+    # its yield torque multiplies tanh(...), which saturates at 1 like z
+    correspondence = {"theta_dot": "c_a", "z": "alpha_a", "i*z": "alpha_b", "i*theta_dot": "c_b"}
+
     params = param_table(_PARAMS)
     normalization = "none (tanh saturates at 1)"
     current_params = ("c_b", "alpha_b")
@@ -178,6 +182,10 @@ class Tanh(SystemFamily):
             }
             out.append((f"v_yield = {f:g} v_peak", start))
         return out
+
+    def saturation_torque(self, p, which):
+        """``tanh`` saturates at 1: ``alpha_a`` (0 A) and ``alpha_b`` (per A)."""
+        return p.get("alpha_a") if which == "a" else p.get("alpha_b")
 
     def equations(self) -> str:
         return (

@@ -1,4 +1,4 @@
-"""Hysteresis shapes: the hysteresis side of a stage-1 candidate.
+"""Hysteresis shapes: the hysteresis side of a stage-1 candidate, as the families declare it.
 
 The hysteresis side of a model is nonlinear in a few *shape constants* (a rate, an
 exponent). Each candidate shape is a small class: it names its hysteresis terms and its
@@ -28,7 +28,7 @@ from typing import ClassVar
 import numpy as np
 
 from hystdisc import registry
-from hystdisc.models import HYSTERESIS_TERM_NAMES
+from hystdisc.models.terms import HYSTERESIS_TERM_NAMES
 
 #: Exponents searched by discovery (smaller n makes the seed form Dahl-like and the state
 #: non-Lipschitz at z = 0, which no fixed-step search should chase; fit Dahl instead).
