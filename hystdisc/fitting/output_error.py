@@ -166,9 +166,10 @@ class OutputErrorFitter:
     rel_step : float
         Relative step of the forward differences (and of a channel delay's column).
     jacobian_mode : {"exact", "lockstep", "terms", "forward"}, optional
-        How :meth:`jacobian` is computed (:data:`~hystdisc.fitting.jacobian.JACOBIAN_MODES`; default: the data's
-        :attr:`~hystdisc.measurement.FitData.jacobian`, ``"exact"`` unless set). The
-        fits inside this one (the bulk, the held-out folds) compute theirs alike.
+        How :meth:`jacobian` is computed (:data:`~hystdisc.fitting.jacobian.JACOBIAN_MODES`;
+        default: the data's :attr:`~hystdisc.measurement.FitData.jacobian`, ``"exact"``
+        unless set). The fits inside this one (the bulk, the held-out folds) compute
+        theirs alike.
     """
 
     def __init__(
@@ -255,8 +256,9 @@ class OutputErrorFitter:
     def jacobian(self, v: np.ndarray) -> np.ndarray:
         """Jacobian of :meth:`residuals` (masked rows, all of ``v``).
 
-        As the fitter's ``jacobian_mode`` says (:data:`~hystdisc.fitting.jacobian.JACOBIAN_MODES`): the kernels'
-        sensitivities for a model in term form
+        As the fitter's ``jacobian_mode`` says
+        (:data:`~hystdisc.fitting.jacobian.JACOBIAN_MODES`): the kernels' sensitivities
+        for a model in term form
         (:func:`~hystdisc.fitting.jacobian.exact_jacobian`), the integrator's for a
         state-space model with compiled partial derivatives
         (:func:`~hystdisc.fitting.system_sensitivity.system_exact_jacobian`), lockstep
