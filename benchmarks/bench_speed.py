@@ -8,9 +8,11 @@
    1 kHz): ``hystdisc discover`` in a fresh interpreter, wall and CPU, median of
    ``--repeats`` after one warm-up (numba's on-disk cache loaded).
 3. **Exact sensitivities against forward differences**, in process, one thread, the same
-   data: ``Discovery(n_jobs=1).fit`` with the output-error Jacobian from the compiled
-   sensitivity kernels (term models) and the lockstep integrator (state-space models, at
-   its tolerances), then with forward differences everywhere (the default), alternated, CPU
+   data: a discovery (``hystdisc.pipeline.run``, ``n_jobs=1``) with the output-error
+   Jacobian from the compiled sensitivity kernels (term models) and the lockstep integrator
+   (state-space models, at its tolerances: ``Options(jacobian="lockstep",
+   integration=LOCKSTEP_INTEGRATION)``), then with forward differences everywhere
+   (``jacobian="forward"``, the fits' own tolerances), alternated, CPU
    time median of ``--repeats`` each; the answers of the two are compared (family,
    parameters to 6 significant digits and in standard errors).
 4. With ``--mr DIR`` (the UTFSM MR damper folder): ``hystdisc discover DIR --rig
@@ -65,25 +67,20 @@ def _median_child(cmd: list[str], repeats: int) -> tuple[float, float]:
 def _fit_cpu(mode: str) -> tuple[float, dict]:
     """CPU time of one in-process discovery with the Jacobian ``mode``, and its answer."""
     from hystdisc.data import load
-    from hystdisc.estimator import Discovery
-    from hystdisc.fitting import output_error, system_jacobian
-    from hystdisc.fitting import simulate as fit_simulate
+    from hystdisc.fitting.system_jacobian import LOCKSTEP_INTEGRATION
+    from hystdisc.pipeline import Options, build_results, run
 
-    sj = system_jacobian
-    saved = output_error.JACOBIAN, sj.METHOD, fit_simulate.SYSTEM_RTOL, fit_simulate.SYSTEM_ATOL
-    output_error.JACOBIAN = "exact" if mode == "exact" else "forward"
-    sj.METHOD = "lockstep" if mode == "exact" else "forward"
+    # Discovery(n_jobs=1, jacobian=...); the integration is an option of the pipeline only
+    opts = Options(n_jobs=1, jacobian="forward")
     if mode == "exact":
-        fit_simulate.SYSTEM_RTOL, fit_simulate.SYSTEM_ATOL = sj.LOCKSTEP_RTOL, sj.LOCKSTEP_ATOL
-    try:
-        ds = load([str(DATA)])
-        t0 = time.process_time()
-        disc = Discovery(n_jobs=1).fit(ds)
-        cpu = time.process_time() - t0
-    finally:
-        output_error.JACOBIAN, sj.METHOD, fit_simulate.SYSTEM_RTOL, fit_simulate.SYSTEM_ATOL = saved
-    fit = disc.final_fit_
-    answer = {"family": disc.family_, "params": dict(fit.params), "ci95": dict(fit.ci95)}
+        opts = opts.replace(jacobian="lockstep", integration=LOCKSTEP_INTEGRATION)
+    ds = load([str(DATA)])
+    t0 = time.process_time()
+    state = run(ds, opts)
+    build_results(state)
+    cpu = time.process_time() - t0
+    fit = state.final_fit
+    answer = {"family": state.family, "params": dict(fit.params), "ci95": dict(fit.ci95)}
     return cpu, answer
 
 
@@ -146,7 +143,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{mode}: {c:.2f} s CPU")
     ce, cf = statistics.median(cpu["exact"]), statistics.median(cpu["forward"])
     lines += [
-        "| Jacobian | CPU of `Discovery(n_jobs=1).fit` (s), median | runs |",
+        "| Jacobian | CPU of a discovery, `n_jobs=1` (s), median | runs |",
         "|---|---:|---|",
         f"| exact (sensitivity kernels, lockstep) | {ce:.2f} | "
         + ", ".join(f"{x:.2f}" for x in cpu["exact"])

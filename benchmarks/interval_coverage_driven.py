@@ -9,9 +9,9 @@ polynomial fits, and the estimate's errors are propagated into the covariance
 (A/B in one run):
 
 ``before``
-    ``motion_error.MOTION = "legacy"``, ``PROPAGATE = False``: main before issue 33.
+    ``Options(motion="legacy", motion_errors=False)``: main before issue 33.
 ``after``
-    ``MOTION = "auto"``, ``PROPAGATE = True``: the default now.
+    ``Options(motion="auto", motion_errors=True)``: the default now.
 
 Data (each draw): the driven test of issue 33's command — sines 0.2 rad at 0.5 Hz, 0.1 rad
 at 2 Hz, 0.05 rad at 5 Hz, each at 0, 0.5 and 1 A, 4 s at 500 Hz, Gaussian force noise
@@ -85,7 +85,7 @@ CONDITIONS = {
     "ramp": {"theta_noise": 1e-4, "bits": None, "ramp": 1.0},
     "motion10": {"theta_noise": 1e-3, "bits": None, "ramp": 0.0},
 }
-#: The variants: name -> (motion_error.MOTION, motion_error.PROPAGATE).
+#: The variants: name -> the pipeline's options (``motion``, ``motion_errors``).
 VARIANTS = {"before": ("legacy", False), "after": ("auto", True)}
 
 
@@ -97,9 +97,7 @@ def sample_set(family: str, index: int) -> dict[str, float]:
 
     rng = np.random.default_rng([SEED, zlib.crc32(family.encode()), index])
     for _ in range(100):
-        p = {
-            k: stress._draw(rng, s) for k, s in {**stress.BOUNDS[family], "k_s": KS_BOUNDS}.items()
-        }
+        p = {k: stress.draw(rng, s) for k, s in {**stress.BOUNDS[family], "k_s": KS_BOUNDS}.items()}
         try:
             ds = generate(
                 Model(family, p), "driven", CURRENTS, DURATION, FS, noise=0.0, drives=DRIVES
@@ -111,14 +109,17 @@ def sample_set(family: str, index: int) -> dict[str, float]:
     raise RuntimeError(f"{family} set {index}: 100 draws diverged")
 
 
-def make_dataset(family: str, params: dict, condition: str, seed: int):
-    """The driven dataset of one draw."""
+def make_dataset(
+    family: str, params: dict, condition: str | dict, seed: int, force_noise: float = FORCE_NOISE
+):
+    """The driven dataset of one draw (``condition``: a name of :data:`CONDITIONS` or such
+    a condition itself)."""
     from hystdisc.data.dataset import Dataset, Run
     from hystdisc.models import Model
     from hystdisc.simulation.runs import simulate_driven_runs
     from hystdisc.simulation.synth import generate, parse_drive
 
-    cond = CONDITIONS[condition]
+    cond = CONDITIONS[condition] if isinstance(condition, str) else condition
     model = Model(family, params)
     if not cond["ramp"]:
         ds = generate(
@@ -127,7 +128,7 @@ def make_dataset(family: str, params: dict, condition: str, seed: int):
             CURRENTS,
             DURATION,
             FS,
-            noise=FORCE_NOISE,
+            noise=force_noise,
             seed=seed,
             drives=DRIVES,
             theta_noise=cond["theta_noise"],
@@ -147,7 +148,7 @@ def make_dataset(family: str, params: dict, condition: str, seed: int):
         sims, _ = simulate_driven_runs(model, [t] * len(cases), [c for _, c in cases], ths, ws)
         runs = []
         for k, ((_, c), sim, th, w) in enumerate(zip(cases, sims, ths, ws, strict=True)):
-            tq = sim.torque + FORCE_NOISE * rng.standard_normal(t.size)
+            tq = sim.torque + force_noise * rng.standard_normal(t.size)
             thm = th + cond["theta_noise"] * rng.standard_normal(t.size)
             runs.append(Run(str(k), t.copy(), thm, c, torque=tq, theta_dot=w))
         ds = Dataset(runs, "driven", f"ramped driven data of {family}")
@@ -178,21 +179,20 @@ def fit_variant(family: str, params: dict, ds, variant: str, discover: bool) -> 
     """Fit ``ds`` with one variant; the z-scores and how the motion was estimated."""
     from threadpoolctl import threadpool_limits
 
-    import hystdisc.fitting.motion_error as me
-    import hystdisc.measurement.motion as mm
-    from hystdisc.estimator import Discovery
     from hystdisc.fitting import FamilyParametrization, OutputErrorFitter
     from hystdisc.measurement.prepare import prepare_data
+    from hystdisc.pipeline import Options, run
 
-    mm.MOTION, me.PROPAGATE = VARIANTS[variant]
+    motion, errors = VARIANTS[variant]
     truth = stress.normalized_truth(family, params)
     c0 = time.process_time()
     with threadpool_limits(limits=1), np.errstate(all="ignore"):
-        if discover:
-            disc = Discovery(model=family, close_loop=False, heldout=False, n_jobs=1).fit(ds)
-            fit, fd = disc.final_fit_, disc.fit_data_
+        if discover:  # Discovery(model=family, close_loop=False, heldout=False, n_jobs=1)
+            opts = Options(model=family, close_loop=False, heldout=False, n_jobs=1)
+            state = run(ds, opts.replace(motion=motion, motion_errors=errors))
+            fit, fd = state.final_fit, state.fit_data
         else:
-            _, fd, _, _ = prepare_data(ds)
+            _, fd, _, _ = prepare_data(ds, motion=motion, motion_errors=errors)
             par = FamilyParametrization(family, "driven", truth)
             fit = OutputErrorFitter(fd, par).fit(heldout=False)
     z = {}

@@ -6,7 +6,8 @@ residual alone are far too small; the ones with the motion estimate's errors pro
 draws. For one family at its demo values (or the values below), issue 33's drives (0.2 rad
 at 0.5 Hz, 0.1 rad at 2 Hz, 0.05 rad at 5 Hz, at 0, 0.5 and 1 A, 4 s at 500 Hz), ``--draws``
 noise draws (seeds 100, 101, ...) are each fitted from the truth by output error twice on
-the same data, ``PROPAGATE`` on and off; per parameter: the standard deviation of the
+the same data, with the motion errors propagated and without (``FitData.motion_errors``
+left out); per parameter: the standard deviation of the
 estimates over the draws, the RMS of each SE, the mean error over the spread and the
 z-scores' RMS with the propagated SE. ``--ramp`` ramps each sine in over the first second
 (``(1 - cos(pi t))/2``: not periodic, so the local fits and their drawn errors are
@@ -19,6 +20,7 @@ Run:  nice -n 10 python benchmarks/motion_propagation.py --family dahl --motion 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 import time
 from pathlib import Path
@@ -44,7 +46,6 @@ def run(family: str, motion: float, force: float, draws: int, ramp: bool) -> tup
     import interval_coverage_driven as icd
     from threadpoolctl import threadpool_limits
 
-    import hystdisc.fitting.motion_error as me
     from hystdisc.fitting import OutputErrorFitter
     from hystdisc.fitting.parametrization import family_parametrization
     from hystdisc.measurement.prepare import prepare_data
@@ -63,9 +64,8 @@ def run(family: str, motion: float, force: float, draws: int, ramp: bool) -> tup
     with threadpool_limits(limits=1), np.errstate(all="ignore"):
         for d in range(draws):
             if ramp:
-                icd.CONDITIONS["ramp"] = {"theta_noise": motion, "bits": None, "ramp": 1.0}
-                icd.FORCE_NOISE = force
-                ds = icd.make_dataset(family, truth, "ramp", 100 + d)
+                cond = {"theta_noise": motion, "bits": None, "ramp": 1.0}
+                ds = icd.make_dataset(family, truth, cond, 100 + d, force_noise=force)
             else:
                 ds = generate(
                     Model(family, truth), "driven", (0.0, 0.5, 1.0), 4.0, 500.0, noise=force,
@@ -75,14 +75,13 @@ def run(family: str, motion: float, force: float, draws: int, ramp: bool) -> tup
             kinds |= {v["estimate"] for v in fd.motion_noise.estimates.values()}
             par = make(family, "driven", truth)
             for prop in (True, False):
-                me.PROPAGATE = prop
                 c0 = time.process_time()
-                fit = OutputErrorFitter(fd, par).fit(heldout=False)
+                data = fd if prop else dataclasses.replace(fd, motion_errors=None)
+                fit = OutputErrorFitter(data, par).fit(heldout=False)
                 cpu += time.process_time() - c0
                 (se_prop if prop else se_plain).append([fit.stderr[k] for k in par.names])
                 if prop:
                     est.append([fit.params[k] for k in par.names])
-    me.PROPAGATE = True
     est, se_prop, se_plain = map(np.array, (est, se_prop, se_plain))
     rows = []
     for j, k in enumerate(par.names):

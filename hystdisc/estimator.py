@@ -94,6 +94,10 @@ class Discovery(BaseEstimator):
         noise floor (:mod:`hystdisc.fitting.multistart`): stage 1's, other basins of its
         shape's grid, random perturbations, the per-level fits and the related families'
         optima; 1: stage 1's start alone. No family ends worse than a model it contains.
+    jacobian : {'exact', 'lockstep', 'terms', 'forward'}
+        How the output-error fits compute their Jacobian: the simulators' exact
+        sensitivities where they have them, else forward differences (the default); see
+        :data:`~hystdisc.fitting.jacobian.JACOBIAN_MODES` for the others.
 
     Attributes
     ----------
@@ -211,6 +215,7 @@ class Discovery(BaseEstimator):
         n_jobs: int | None = None,
         staged: bool = False,
         n_starts: int = 4,
+        jacobian: str = "exact",
     ) -> None:
         self.experiment = experiment
         self.families = families
@@ -229,6 +234,7 @@ class Discovery(BaseEstimator):
         self.n_jobs = n_jobs
         self.n_starts = n_starts
         self.staged = staged
+        self.jacobian = jacobian
 
     # -- public API
     def fit(

@@ -138,6 +138,47 @@ def test_a_bug_is_one_line_with_its_own_exit_code(monkeypatch, capsys):
         main(["simulate", "--model", "dahl", "-o", "x.csv"])
 
 
+@pytest.mark.parametrize("ends", ["returns", "fails", "raises"])
+def test_warnings_are_one_line_each_during_a_command_and_shown_as_before_after(
+    monkeypatch, capsys, ends
+):
+    """``main`` prints each warning once, as one line, while the command runs, and puts the
+    process's warning display and filters back however the command ends."""
+    import warnings
+
+    from hystdisc.cli import main
+    from hystdisc.cli import simulate as simulate_cmd
+    from hystdisc.errors import HystdiscError, HystdiscWarning
+
+    def warns(args):
+        warnings.simplefilter("ignore", DeprecationWarning)  # a command's own filter
+        for _ in range(2):
+            warnings.warn("the runs share one current", HystdiscWarning, stacklevel=1)
+        warnings.warn("a library's", RuntimeWarning, stacklevel=1)
+        if ends == "fails":
+            raise HystdiscError("a user error")
+        if ends == "raises":
+            raise ZeroDivisionError("a bug")
+        return 0
+
+    monkeypatch.setattr(simulate_cmd, "run", warns)
+    monkeypatch.setenv("HYSTDISC_TRACEBACK", "1")  # a bug propagates out of main
+    display, filters = warnings.showwarning, list(warnings.filters)
+    argv = ["simulate", "--model", "dahl", "-o", "x.csv"]
+    if ends == "raises":
+        with pytest.raises(ZeroDivisionError):
+            main(argv)
+    else:
+        assert main(argv) == (0 if ends == "returns" else 2)
+    assert warnings.showwarning is display
+    assert warnings.filters == filters
+    err = capsys.readouterr().err.splitlines()
+    assert err[:2] == [
+        "hystdisc: warning: the runs share one current",
+        "hystdisc: warning: RuntimeWarning: a library's",
+    ]
+
+
 def _console(args: list[str], cwd: Path) -> subprocess.CompletedProcess:
     """``python -m hystdisc ARGS`` (the console entry, :func:`hystdisc.cli.console`)."""
     return subprocess.run(

@@ -181,3 +181,30 @@ def test_predict_labels_each_run():
     assert all(len(v) == n for v in table.values())
     assert list(table) == ["run", "t", "current", "measured", "predicted"]
     assert d.score(data) > 0.9  # score reads the predictions too
+
+
+def test_the_fit_options_reach_every_fit(monkeypatch):
+    """``Discovery(jacobian=...)`` and the pipeline's own integration settings travel with
+    the fits' data to every fit of a discovery, the closing loop's refits included: with
+    forward differences not one exact Jacobian is computed. An unknown mode fails before
+    any fit."""
+    import hystdisc.fitting.output_error as oe
+    from hystdisc.errors import HystdiscError
+    from hystdisc.pipeline import Options, run
+    from hystdisc.simulation import Integration
+
+    exact = []
+    # the recorder returns None, as a diverged run does: the fit takes differences
+    monkeypatch.setattr(oe, "exact_jacobian", lambda *args: exact.append(1))
+    d = Discovery(**FAST, jacobian="forward").fit(_data())  # the loop on
+    assert d.loop_ is not None and not d.failed_
+    assert not exact and d.fit_data_.jacobian == "forward"
+    how = Integration(max_sub=6)
+    state = run(_data(), Options(**FAST, close_loop=False, integration=how))
+    assert exact  # the default mode asks for exact Jacobians
+    fd = state.fit_data
+    assert fd.jacobian == "exact" and fd.integration == how
+    assert fd.subset([1]).integration == how
+    assert fd.bulk() is None or fd.bulk().integration == how
+    with pytest.raises(HystdiscError, match="unknown Jacobian mode 'central'"):
+        Discovery(**FAST, jacobian="central").fit(_data())

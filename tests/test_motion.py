@@ -12,8 +12,6 @@ import numpy as np
 import pytest
 from threadpoolctl import threadpool_limits
 
-import hystdisc.fitting.motion_error as me
-import hystdisc.measurement.motion as mm
 from hystdisc.data import Dataset, Run
 from hystdisc.data.motion import fit_harmonics, motion_noise
 from hystdisc.data.rigs import normalize_rig
@@ -127,11 +125,8 @@ def test_harmonic_velocity_is_unbiased():
     _, fd, _, _ = prepare_data(ds)
     for k in (6, 7, 8):  # 0.05 rad at 5 Hz
         assert abs(gain(fd.theta_dot[k], ds.runs[k].theta_dot) - 1) < 1e-4
-    mm.MOTION = "legacy"
-    try:
-        _, old, _, _ = prepare_data(ds)
-    finally:
-        mm.MOTION = "auto"
+    _, old, _, _ = prepare_data(ds, motion="legacy")
+    assert {e["estimate"] for e in old.motion_noise.estimates.values()} == {"smoother"}
     assert abs(gain(old.theta_dot[6], ds.runs[6].theta_dot) - 1) > 2e-3
 
 
@@ -194,17 +189,14 @@ def test_harmonic_modes_match_the_spread_of_refits():
 def _z_rms(ds_list, propagate: bool) -> float:
     """RMS over draws and parameters of (estimate - truth) / SE of the declared Dahl fit."""
     zs = []
-    me.PROPAGATE = propagate
-    try:
-        with threadpool_limits(limits=1):
-            for ds in ds_list:
-                _, fd, _, _ = prepare_data(ds)
-                fit = OutputErrorFitter(fd, FamilyParametrization("dahl", "driven", DAHL)).fit(
-                    heldout=False
-                )
-                zs += [(fit.params[k] - v) / fit.stderr[k] for k, v in DAHL.items()]
-    finally:
-        me.PROPAGATE = True
+    with threadpool_limits(limits=1):
+        for ds in ds_list:
+            _, fd, _, _ = prepare_data(ds, motion_errors=propagate)
+            assert (fd.motion_errors is not None) == propagate
+            fit = OutputErrorFitter(fd, FamilyParametrization("dahl", "driven", DAHL)).fit(
+                heldout=False
+            )
+            zs += [(fit.params[k] - v) / fit.stderr[k] for k, v in DAHL.items()]
     return float(np.sqrt(np.mean(np.square(zs))))
 
 

@@ -18,7 +18,14 @@ import hystdisc.simulation.batch as batch
 from hystdisc import Discovery
 from hystdisc.models import Model
 from hystdisc.simulation.batch import integrate_z_flat
-from hystdisc.simulation.parallel import chunk_bounds, limit_threads, map_after, n_threads
+from hystdisc.simulation.parallel import (
+    chunk_bounds,
+    limit_threads,
+    map_after,
+    map_entries,
+    map_tasks,
+    n_threads,
+)
 from hystdisc.simulation.synth import generate
 
 
@@ -44,6 +51,43 @@ def test_the_limit_is_restored_after_the_block():
             assert n_threads() == 3  # a limit, not the CPUs: at most MAX_THREADS (4)
         assert n_threads() == 1
     assert n_threads() == before
+
+
+def test_two_threads_keep_their_own_limits_and_their_workers_inherit_them():
+    """Two discoveries on two threads, each inside its own limit at the same time (a
+    barrier holds both inside their blocks): each sees its own limit, and so does every
+    worker its maps hand work to (a worker thread does not inherit a context variable
+    unless the map copies the caller's context into it)."""
+    inside = threading.Barrier(2, timeout=120)
+    seen: dict[int, list[int]] = {}
+    errors: list[BaseException] = []
+
+    def discovery(limit: int) -> None:
+        try:
+            with limit_threads(limit):
+                inside.wait()  # both limits are set now
+                own = n_threads()
+                tasks = map_tasks(lambda _: n_threads(), [0, 1, 2], n_jobs=2)
+                entries = map_entries(lambda _: n_threads(), list(range(6)))
+                firsts, afters = map_after(
+                    lambda _: n_threads(), [0, 1], lambda _, ready: n_threads(), [0, 1], 2
+                )
+                inside.wait()  # neither has left its block yet
+                seen[limit] = [own, *tasks, *entries, *firsts, *afters]
+        except BaseException as exc:  # noqa: BLE001 - reported by the test thread
+            errors.append(exc)
+            inside.abort()
+
+    before = n_threads()
+    threads = [threading.Thread(target=discovery, args=(k,)) for k in (1, 3)]
+    for th in threads:
+        th.start()
+    for th in threads:
+        th.join()
+    assert not errors, errors
+    assert seen[1] == [1] * 14
+    assert seen[3] == [3] * 14
+    assert n_threads() == before  # this thread never had a limit
 
 
 def _z_of_batch() -> np.ndarray:

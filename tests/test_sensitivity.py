@@ -19,12 +19,12 @@ import pytest
 from hystdisc.data import load
 from hystdisc.errors import HystdiscError
 from hystdisc.fitting import FamilyParametrization, OutputErrorFitter, SystemParametrization
-from hystdisc.fitting import simulate as fit_simulate
 from hystdisc.fitting.jacobian import exact_jacobian
 from hystdisc.measurement import FitData
 from hystdisc.models import Model
 from hystdisc.models.compiled import base_coefficients
 from hystdisc.models.wheel import BeamOnCompliantWheel
+from hystdisc.simulation import Integration
 from hystdisc.simulation.batch import (
     driven_batch,
     driven_sens_batch,
@@ -42,9 +42,10 @@ FIXED_SUB = 3
 JAC_TOL = 1e-5
 
 
-def _fit_data(family: str, experiment: str, window: int = 0) -> FitData:
+def _fit_data(family: str, experiment: str, window: int = 0, how=None) -> FitData:
     """Two 1-s runs of ``family`` at its defaults, as the output-error fit takes them (the
-    first samples masked; ``window``: a declared output filter)."""
+    first samples masked; ``window``: a declared output filter; ``how``: the fits'
+    :class:`Integration`)."""
     ds = generate(family, experiment, currents=CURRENTS, duration=1.0, fs=500.0, seed=3)
     runs = list(ds.runs)
     driven = experiment == "driven"
@@ -63,6 +64,7 @@ def _fit_data(family: str, experiment: str, window: int = 0) -> FitData:
         [np.asarray(a, dtype=float) for a in u],
         mask,
         1e-3,
+        integration=how or Integration(),
     )
     if window:
         fd.filter_windows = [window] * fd.n_runs
@@ -96,10 +98,9 @@ def _central(fitter: OutputErrorFitter, v: np.ndarray, rel: float = 1e-6) -> np.
 
 
 @pytest.fixture
-def fixed_substeps(monkeypatch):
+def fixed_substeps() -> Integration:
     """Every sample interval of a fit integrated in :data:`FIXED_SUB` sub-steps."""
-    monkeypatch.setattr(fit_simulate, "FIT_MIN_SUB", FIXED_SUB)
-    monkeypatch.setattr(fit_simulate, "FIT_MAX_SUB", FIXED_SUB)
+    return Integration(min_sub=FIXED_SUB, max_sub=FIXED_SUB)
 
 
 def _check_jacobian(par, fd: FitData, seed: int) -> None:
@@ -219,7 +220,7 @@ def test_sensitivities_match_central_differences_of_the_kernel():
 @pytest.mark.parametrize("experiment", ["release", "forced", "driven"])
 @pytest.mark.parametrize("family", ["bingham", "dahl", "lugre", "bouc-wen", "bouc-wen-std"])
 def test_exact_jacobian_matches_central_differences(family, experiment, fixed_substeps):
-    fd = _fit_data(family, experiment)
+    fd = _fit_data(family, experiment, how=fixed_substeps)
     par = FamilyParametrization(family, experiment, {})
     _check_jacobian(par, fd, seed=sum(map(ord, family + experiment)))
 
@@ -239,7 +240,7 @@ def test_exact_jacobian_matches_central_differences(family, experiment, fixed_su
     ],
 )
 def test_exact_jacobian_with_effects(effect, experiment, fixed_substeps):
-    fd = _fit_data("bouc-wen", experiment)
+    fd = _fit_data("bouc-wen", experiment, how=fixed_substeps)
     par = FamilyParametrization("bouc-wen", experiment, {}, effects=(effect,))
     _check_jacobian(par, fd, seed=7)
 
@@ -248,18 +249,18 @@ def test_exact_jacobian_with_effects(effect, experiment, fixed_substeps):
 def test_exact_jacobian_with_a_saturating_law_and_a_filter(experiment, fixed_substeps):
     """A current law ``i0 tanh(i / i0)`` (a nonlinear map to the term vectors) and a
     declared moving-average filter of the output."""
-    fd = _fit_data("dahl", experiment, window=7)
+    fd = _fit_data("dahl", experiment, window=7, how=fixed_substeps)
     par = FamilyParametrization("dahl", experiment, {"k_w_i0": 0.6}, laws={"k_w": "saturating"})
     assert "k_w_i0" in par.names
     _check_jacobian(par, fd, seed=11)
 
 
-def test_exact_jacobian_on_decimated_data(monkeypatch):
+def test_exact_jacobian_on_decimated_data():
     """The bulk of a long fit: every other sample, the sub-step cap doubled (fixed at
     twice :data:`FIXED_SUB` here), a filter averaged on the measured grid."""
-    fd = _fit_data("lugre", "release", window=5).decimated([2, 2])
-    monkeypatch.setattr(fit_simulate, "FIT_MIN_SUB", 2 * FIXED_SUB)
-    monkeypatch.setattr(fit_simulate, "FIT_MAX_SUB", FIXED_SUB)
+    how = Integration(min_sub=2 * FIXED_SUB, max_sub=FIXED_SUB)
+    fd = _fit_data("lugre", "release", window=5, how=how).decimated([2, 2])
+    assert fd.integration == how  # the decimated copy integrates as its original
     _check_jacobian(FamilyParametrization("lugre", "release", {}), fd, seed=5)
 
 
@@ -310,6 +311,17 @@ def test_the_jacobian_mode_chooses_the_method():
     # a state-space model has no term kernels: forward differences
     system = SystemParametrization(BeamOnCompliantWheel("dahl"), {}, {"m_w": 0.3})
     assert not OutputErrorFitter(fd, system, jacobian_mode="exact").exact
+    assert OutputErrorFitter(fd, system, jacobian_mode="lockstep").lockstep
+    assert not OutputErrorFitter(fd, par, jacobian_mode="lockstep").lockstep
+    # "lockstep" and "terms" keep a term model's exact Jacobian
+    assert OutputErrorFitter(fd, par, jacobian_mode="lockstep").exact
+    assert OutputErrorFitter(fd, par, jacobian_mode="terms").exact
+    # without an argument the fitter takes the data's mode (the pipeline's option), and
+    # the fits inside it (the bulk, the held-out folds) take it from the fitter
+    fd.jacobian = "forward"
+    assert OutputErrorFitter(fd, par).jacobian_mode == "forward"
+    assert OutputErrorFitter(fd.subset([1]), par).jacobian_mode == "forward"
+    assert OutputErrorFitter(fd, par, jacobian_mode="exact").exact
 
 
 @pytest.mark.parametrize("experiment", ["release", "forced", "driven"])

@@ -120,3 +120,25 @@ def test_n_eff_counts_a_measured_torque_fully(dahl_eq):
     t = np.linspace(0, 1, 5)
     driven = EqData("driven", [t], [t], [t], [t], [t], np.zeros(1), [t > 0], window=9)
     assert driven.n_eff(1000) == 1000.0
+
+
+def test_the_ensemble_leaves_numpys_global_generator_as_it_found_it():
+    """pysindy's EnsembleOptimizer draws its resamples from numpy's global generator: the
+    inclusion probabilities are those of ``seed`` whatever the generator's state, and a
+    caller's own stream from ``np.random`` continues as if they had not been computed."""
+    from hystdisc.discovery.selection import inclusion
+
+    rng = np.random.default_rng(5)
+    F = rng.normal(size=(300, 4))
+    y = F @ np.array([1.0, 0.0, 0.28, 2.0]) + rng.normal(0, 0.3, 300)  # c at the threshold
+    names = ["a", "b", "c", "d"]
+    np.random.seed(123)  # noqa: NPY002 - the caller's stream, as a user's script has it
+    first = inclusion(F, y, names, 0.1, seed=7, n_models=10)
+    after = np.random.random(3)  # noqa: NPY002
+    np.random.seed(123)  # noqa: NPY002
+    expected = np.random.random(3)  # noqa: NPY002
+    np.testing.assert_array_equal(after, expected)
+    np.random.seed(999)  # noqa: NPY002 - another state: the same probabilities
+    assert inclusion(F, y, names, 0.1, seed=7, n_models=10) == first
+    assert first["a"] == 1.0 and first["d"] == 1.0 and 0.0 < first["c"] < 1.0
+    assert inclusion(F, y, names, 0.1, seed=10, n_models=10)["c"] != first["c"]  # seeded

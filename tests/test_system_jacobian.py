@@ -3,16 +3,18 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 from hystdisc.fitting import FamilySystemParametrization
-from hystdisc.fitting import simulate as sim
 from hystdisc.fitting import system_jacobian as sj
 from hystdisc.fitting.output_error import OutputErrorFitter
 from hystdisc.fitting.system_sensitivity import exact_applies, system_exact_jacobian
 from hystdisc.measurement.fitdata import FitData
 from hystdisc.models import Model
+from hystdisc.simulation import Integration
 from hystdisc.simulation.ode import simulate_lockstep, simulate_system
 from hystdisc.simulation.sensitivity_ode import simulate_system_sensitivities
 from hystdisc.simulation.synth import generate
@@ -55,14 +57,15 @@ def _data(family: str, truth: dict, experiment: str, noise: float, seed: int = 1
     )
 
 
+def _at(data: FitData, rtol: float, atol: float) -> FitData:
+    """``data`` whose fits integrate at ``rtol``, ``atol``."""
+    return dataclasses.replace(data, integration=Integration(rtol=rtol, atol=atol))
+
+
 def _jacobian(fitter: OutputErrorFitter, v, method: str, rtol: float, atol: float):
-    keep = sj.METHOD, sim.SYSTEM_RTOL, sim.SYSTEM_ATOL
-    sj.METHOD, sim.SYSTEM_RTOL, sim.SYSTEM_ATOL = method, rtol, atol
-    try:
-        v = np.asarray(v, dtype=float)
-        return fitter.difference_jacobian(v) if method == "forward" else fitter.jacobian(v)
-    finally:
-        sj.METHOD, sim.SYSTEM_RTOL, sim.SYSTEM_ATOL = keep
+    other = OutputErrorFitter(_at(fitter.data, rtol, atol), fitter.par, jacobian_mode=method)
+    v = np.asarray(v, dtype=float)
+    return other.difference_jacobian(v) if method == "forward" else other.jacobian(v)
 
 
 def _column_errors(J, ref):
@@ -73,15 +76,11 @@ def _reference(fitter, v):
     """Central differences of separately integrated runs at rtol 1e-12."""
     h = 1e-5 * np.maximum(np.abs(v), 1e-3)
     ref = np.empty((fitter.row_offsets[-1], v.size))
-    keep = sim.SYSTEM_RTOL, sim.SYSTEM_ATOL
-    sim.SYSTEM_RTOL, sim.SYSTEM_ATOL = 1e-12, 1e-15
-    try:
-        for j in range(v.size):
-            e = np.zeros(v.size)
-            e[j] = h[j]
-            ref[:, j] = (fitter.residuals(v + e) - fitter.residuals(v - e)) / (2 * h[j])
-    finally:
-        sim.SYSTEM_RTOL, sim.SYSTEM_ATOL = keep
+    tight = OutputErrorFitter(_at(fitter.data, 1e-12, 1e-15), fitter.par)
+    for j in range(v.size):
+        e = np.zeros(v.size)
+        e[j] = h[j]
+        ref[:, j] = (tight.residuals(v + e) - tight.residuals(v - e)) / (2 * h[j])
     return ref
 
 
@@ -133,13 +132,7 @@ def test_lockstep_jacobian_matches_a_tight_central_difference(family, truth, exp
 
 
 def _fit(par, data, method: str, rtol: float, atol: float):
-    keep = sj.METHOD, sim.SYSTEM_RTOL, sim.SYSTEM_ATOL
-    sj.METHOD, sim.SYSTEM_RTOL, sim.SYSTEM_ATOL = method, rtol, atol
-    try:
-        mode = "forward" if method == "forward" else None
-        return OutputErrorFitter(data, par, jacobian_mode=mode).fit(heldout=False)
-    finally:
-        sj.METHOD, sim.SYSTEM_RTOL, sim.SYSTEM_ATOL = keep
+    return OutputErrorFitter(_at(data, rtol, atol), par, jacobian_mode=method).fit(heldout=False)
 
 
 def test_a_spencer_fit_with_the_lockstep_jacobian_reaches_the_old_optimum():
@@ -206,6 +199,8 @@ def test_exact_system_jacobian_matches_a_tight_central_difference(
     par = FamilySystemParametrization(family, experiment, start, effects)
     fitter = OutputErrorFitter(data, par)
     assert fitter.exact_system
+    terms = OutputErrorFitter(data, par, jacobian_mode="terms")  # the sensitivities off
+    assert not (terms.exact_system or terms.lockstep or terms.exact)
     v = np.concatenate([par.x0, data.nuisance_start(fitter.state)])
     x, nu = v[: par.x0.size], v[par.x0.size :].reshape(data.n_runs, -1)
     J = system_exact_jacobian(data, par, x, nu, fitter.masks, 1e-6)
@@ -246,12 +241,7 @@ def test_a_spencer_fit_with_the_exact_jacobian_reaches_the_reference_optimum():
     par = FamilySystemParametrization("spencer", "driven", start)
     new = OutputErrorFitter(data, par).fit(heldout=False)
     old = OutputErrorFitter(data, par, jacobian_mode="forward").fit(heldout=False)
-    keep = sim.SYSTEM_RTOL, sim.SYSTEM_ATOL
-    sim.SYSTEM_RTOL, sim.SYSTEM_ATOL = 1e-12, 1e-15
-    try:
-        ref = OutputErrorFitter(data, par, jacobian_mode="forward").fit(heldout=False)
-    finally:
-        sim.SYSTEM_RTOL, sim.SYSTEM_ATOL = keep
+    ref = _fit(par, data, "forward", 1e-12, 1e-15)
     assert new.rms == pytest.approx(ref.rms, rel=1e-6)
     for k in par.names:
         se = ref.stderr[k]

@@ -25,6 +25,8 @@ import importlib
 import os
 import sys
 import warnings
+from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import NoReturn
 
 from hystdisc import __version__
@@ -97,19 +99,24 @@ def _unknown_options(parser: OneLineParser, extras: list[str]) -> str:
     return text
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Run the command line ``argv`` (default ``sys.argv[1:]``) and return its exit status
-    (the console script is :func:`console`)."""
-    parser = build_parser()
-    args, extras = parser.parse_known_args(argv)
-    if extras:  # the subcommand's own parser names itself and its --help in the message
-        owner = getattr(args, "command_parser", None) or parser
-        owner.error(_unknown_options(owner, extras))
-    if not getattr(args, "command", None):
-        parser.print_help(sys.stderr)
-        return 2
+@contextmanager
+def reported_warnings(quiet: bool = False) -> Iterator[None]:
+    """Inside the block, every warning is one line on stderr, each text once (the data are
+    checked by the reader and again by the fit): ``hystdisc: warning: ...`` for
+    hystdisc's own, with its category for another library's (those only without
+    ``quiet``). The warning display (``warnings.showwarning``) and filters are restored
+    when the block ends, however it ends.
 
-    said: set[str] = set()  # the data are checked by the reader and again by the fit
+    Examples
+    --------
+    >>> before = warnings.showwarning
+    >>> with reported_warnings():
+    ...     warnings.showwarning is before
+    False
+    >>> warnings.showwarning is before
+    True
+    """
+    said: set[str] = set()
 
     def _warn(message, category, filename, lineno, file=None, line=None):
         text = str(message)
@@ -118,10 +125,32 @@ def main(argv: list[str] | None = None) -> int:
         said.add(text)
         if issubclass(category, HystdiscWarning):
             print(f"hystdisc: warning: {message}", file=sys.stderr)
-        elif not getattr(args, "quiet", False):
+        elif not quiet:
             print(f"hystdisc: warning: {category.__name__}: {message}", file=sys.stderr)
 
-    warnings.showwarning = _warn
+    with warnings.catch_warnings():
+        warnings.showwarning = _warn
+        yield
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the command line ``argv`` (default ``sys.argv[1:]``) and return its exit status
+    (the console script is :func:`console`). Warnings are printed as
+    :func:`reported_warnings` says while the command runs, and shown as before after it."""
+    parser = build_parser()
+    args, extras = parser.parse_known_args(argv)
+    if extras:  # the subcommand's own parser names itself and its --help in the message
+        owner = getattr(args, "command_parser", None) or parser
+        owner.error(_unknown_options(owner, extras))
+    if not getattr(args, "command", None):
+        parser.print_help(sys.stderr)
+        return 2
+    with reported_warnings(getattr(args, "quiet", False)):
+        return _run(args)
+
+
+def _run(args: argparse.Namespace) -> int:
+    """The command of ``args``, its errors as one line and an exit status."""
     try:
         with first_compile_note(getattr(args, "quiet", False)):
             return int(args.run_command(args) or 0)

@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import threading
 import warnings
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -28,7 +29,8 @@ from hystdisc.stats import bic
 #: on clean data the residual is differentiation error (~1e-10), which extra terms would soak up.
 EQ_RSS_FLOOR = 1e-8
 
-#: warnings.catch_warnings changes process-wide state: one thread at a time.
+#: warnings.catch_warnings and the ensemble's use of numpy's global generator change
+#: process-wide state: one thread at a time.
 _WARN_LOCK = threading.Lock()
 
 
@@ -160,17 +162,35 @@ def inclusion(
     seed: int,
     n_models: int = 40,
 ) -> dict[str, float]:
-    """Inclusion probability of each term over bootstrap resamples (pysindy EnsembleOptimizer)."""
+    """Inclusion probability of each term over bootstrap resamples (pysindy EnsembleOptimizer).
+
+    pysindy's ``EnsembleOptimizer`` (2.x) takes no random state: it draws its resamples
+    from numpy's global generator. The draws are made from the generator seeded with
+    ``seed``, under the module's lock, and the generator's state is restored afterwards,
+    so a caller's own draws from ``np.random`` are not moved (code drawing from it on
+    another thread at the same moment would still interleave with these draws).
+    """
     sc = np.sqrt((F**2).mean(axis=0))
     sc[sc == 0] = 1.0
     ys = np.sqrt((y**2).mean()) or 1.0
-    np.random.seed(seed)  # noqa: NPY002 - EnsembleOptimizer draws from numpy's global generator
     opt = ps.EnsembleOptimizer(
         opt=ps.STLSQ(threshold=threshold, alpha=1e-10, unbias=True), bagging=True, n_models=n_models
     )
-    with _WARN_LOCK, warnings.catch_warnings():
+    with _WARN_LOCK, warnings.catch_warnings(), _global_seed(seed):
         warnings.simplefilter("ignore")
         opt.fit(F / sc, y / ys)
     coefs = np.array([np.asarray(c).ravel() for c in opt.coef_list])
     p = (np.abs(coefs) > 0).mean(axis=0)
     return dict(zip(names, map(float, p), strict=True))
+
+
+@contextmanager
+def _global_seed(seed: int) -> Iterator[None]:
+    """numpy's global generator seeded with ``seed`` inside the block, its state as it was
+    before the block afterwards."""
+    saved = np.random.get_state()  # noqa: NPY002 - pysindy's ensemble draws from it
+    np.random.seed(seed)  # noqa: NPY002
+    try:
+        yield
+    finally:
+        np.random.set_state(saved)  # noqa: NPY002

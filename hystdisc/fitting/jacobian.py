@@ -10,7 +10,8 @@ the Jacobian's columns. A parameter that moves the channel delay adds the forwar
 difference of the measured output in the delay alone.
 
 :func:`difference_jacobian` takes forward differences instead (any model: one simulation
-per column, every column of a run in one batched call).
+per column, every column of a run in one batched call). :data:`JACOBIAN_MODES` are the
+ways a fit may compute its Jacobian.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from collections.abc import Callable, Iterator
 
 import numpy as np
 
+from hystdisc.errors import HystdiscError
 from hystdisc.fitting.parametrization import Parametrization
 from hystdisc.fitting.simulate import kernel_vectors, simulate_sensitivities
 from hystdisc.measurement.chain import measured_output
@@ -33,6 +35,50 @@ JAC_CHUNK_SAMPLES = 2_000_000
 MAP_STEP = 1e-5
 #: The sensitivity direction of each initial-state (nuisance) parameter.
 START_DIRECTIONS = {"theta0": DIR_TH0, "theta_dot0": DIR_W0, "z0": DIR_Z0}
+
+#: How a fit may compute its Jacobian (``jacobian_mode`` of
+#: :class:`~hystdisc.fitting.output_error.OutputErrorFitter`;
+#: by default the data's :attr:`~hystdisc.measurement.FitData.jacobian`, which the
+#: pipeline sets from ``Options.jacobian``, ``"exact"`` unless told otherwise):
+#:
+#: - ``"exact"``: the forward sensitivities of the term kernels for a model in term form
+#:   (2.3x faster per Jacobian than forward differences, tested against central
+#:   differences) and of the error-controlled integrator for a state-space model with
+#:   compiled partial derivatives (:mod:`~hystdisc.fitting.system_sensitivity`); forward
+#:   differences for any other;
+#: - ``"lockstep"``: as ``"exact"`` for a model in term form; every state-space model by
+#:   lockstep internal differentiation (:mod:`~hystdisc.fitting.system_jacobian`, which
+#:   also works at its looser tolerances,
+#:   :data:`~hystdisc.fitting.system_jacobian.LOCKSTEP_INTEGRATION`);
+#: - ``"terms"``: as ``"exact"`` for a model in term form; every state-space model by
+#:   forward differences (the state-space sensitivities off: ``benchmarks/system_jacobian.py``
+#:   measures them against this);
+#: - ``"forward"``: forward differences for every model.
+#:
+#: Exact is the default since the families are compared again with every accepted effect
+#: (:mod:`hystdisc.closing.reselect`): measured with ``benchmarks/check_unchanged.py``,
+#: exact and forward give the same family, effects and parameters (to 0.01 standard
+#: errors) on every ``data_synth/*.csv``. Before that, at 68d5560, the loop added
+#: ``coulomb`` on ``effect_quadratic_damping.csv`` with the exact one: it trimmed the
+#: misfit of the wrong Bouc-Wen form, which the table had selected and which now loses to
+#: the true one.
+JACOBIAN_MODES = ("exact", "lockstep", "terms", "forward")
+
+
+def check_jacobian_mode(mode: str) -> str:
+    """``mode`` when it is one of :data:`JACOBIAN_MODES`, else a one-line error.
+
+    Examples
+    --------
+    >>> check_jacobian_mode("forward")
+    'forward'
+    """
+    if mode not in JACOBIAN_MODES:
+        raise HystdiscError(
+            f"unknown Jacobian mode '{mode}'; fix: use {', '.join(JACOBIAN_MODES[:-1])} or "
+            f"{JACOBIAN_MODES[-1]}"
+        )
+    return mode
 
 
 def difference_steps(v: np.ndarray, rel_step: float) -> np.ndarray:

@@ -15,6 +15,11 @@ parameters is then
 with ``s_F^2`` the force noise: the residual variance less the part the motion errors put
 into the residual (``|dF|^2 - dv^T J^T J dv`` per mode), which would otherwise be counted
 twice.
+
+Data whose ``motion_errors`` are None (release or forced data, an exact motion, or
+prepared with ``motion_errors=False``:
+:func:`~hystdisc.measurement.prepare.prepare_data`, the pipeline's
+``Options.motion_errors``) add nothing.
 """
 
 from __future__ import annotations
@@ -29,8 +34,6 @@ from hystdisc.measurement.motion import CHUNK_SAMPLES
 #: scaled back): far above the fixed-step kernels' error (about 1e-6 of the signal), far
 #: below where the model's response to the motion bends.
 MODE_STEP = 1e-3
-#: The motion estimate's errors enter the parameters' covariance.
-PROPAGATE = True
 
 
 @dataclass
@@ -72,7 +75,8 @@ def motion_covariance(
     Parameters
     ----------
     data : FitData
-        The runs (their ``motion_errors``; None: nothing to add).
+        The runs (their ``motion_errors``; None: nothing to add, the errors are not
+        propagated).
     par : Parametrization
         The fitted structure.
     x, nu : ndarray
@@ -88,7 +92,7 @@ def motion_covariance(
         None when no run carries a motion estimate with noise.
     """
     ests = getattr(data, "motion_errors", None)
-    if not PROPAGATE or ests is None or not data.exp.motion_imposed:
+    if ests is None or not data.exp.motion_imposed:
         return None
     model = par.model(x)
     runs = list(range(data.n_runs))

@@ -11,19 +11,17 @@ through the (cheap) map from the free parameters to the term vectors gives the c
 state-space model with compiled partial derivatives (Spencer's family) gets its exact
 Jacobian the same way from the error-controlled integrator
 (:mod:`~hystdisc.fitting.system_sensitivity`). Any other state-space model's Jacobian, a
-diverged simulation's and, on request (:data:`JACOBIAN`, ``jacobian_mode``), any model's
-are forward differences, all columns in one batched
-simulation call (a run's nuisance parameters only touch that run, so only that run is
-re-simulated).
+diverged simulation's and, on request (``jacobian_mode``, one of
+:data:`~hystdisc.fitting.jacobian.JACOBIAN_MODES`), any model's are forward differences,
+all columns in one batched simulation call (a run's nuisance parameters only touch that
+run, so only that run is re-simulated).
 
-At the optimum the Jacobian gives 95 % intervals (``s^2 (J^T J)^-1``; the errors of a
-driven run's motion estimate are added,
-:func:`~hystdisc.fitting.motion_error.motion_covariance`), an identifiability check
-(intervals wider than the value, near-singular directions of the column-scaled
-Jacobian), BIC, and held-out errors: each fold (one test condition, or one run when all
-runs share one) is left out, the fit without it is estimated by a Gauss-Newton step from
-the joint optimum and :data:`HELDOUT_STEPS` Levenberg-Marquardt iterations on the other
-runs, and the fold's runs are simulated with it.
+At the optimum the Jacobian gives 95 % intervals and an identifiability check
+(:func:`~hystdisc.fitting.intervals.fit_intervals`), BIC, and held-out errors: each fold
+(one test condition, or one run when all runs share one) is left out, the fit without it
+is estimated by a Gauss-Newton step from the joint optimum and :data:`HELDOUT_STEPS`
+Levenberg-Marquardt iterations on the other runs, and the fold's runs are simulated with
+it.
 """
 
 from __future__ import annotations
@@ -35,25 +33,20 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from hystdisc.errors import HystdiscError
-from hystdisc.fitting.jacobian import difference_jacobian, exact_jacobian
+from hystdisc.fitting.intervals import fit_intervals
+from hystdisc.fitting.jacobian import check_jacobian_mode, difference_jacobian, exact_jacobian
 from hystdisc.fitting.lm import levenberg_marquardt
-from hystdisc.fitting.motion_error import motion_covariance
 from hystdisc.fitting.parametrization import Parametrization, SystemParametrization
-from hystdisc.fitting.quantized import quantization_information_by_dwell
-from hystdisc.fitting.system_jacobian import lockstep_applies, system_jacobian
+from hystdisc.fitting.system_jacobian import system_jacobian
 from hystdisc.fitting.system_sensitivity import exact_applies, system_exact_jacobian
 from hystdisc.measurement.fitdata import FitData
 from hystdisc.models import TermModel
 from hystdisc.stats import bic as _bic
 
-Z95 = 1.959963984540054
 #: Levenberg-Marquardt iterations on the full data after the bulk fit, at least.
 POLISH_MIN_ITER = 2
 #: The bulk fit is used when the full data take this many times its integration work.
 BULK_MIN_GAIN = 2.0
-#: A parameter whose scaled loading on a flat direction of the Gram matrix (a singular
-#: value below 1e-10 of the largest) exceeds this has no finite interval.
-FLAT_LOADING = 0.1
 #: Relative cost change at which the bulk fit hands over to the full data.
 BULK_TOL = 1e-5
 #: Levenberg-Marquardt iterations of each held-out fold after its Gauss-Newton step
@@ -66,16 +59,6 @@ HELDOUT_STEPS = 2
 #: of one parameter's chi-square; measured on data_synth, the held-out RMS agrees to 4-6
 #: digits in those folds, while a fit at a bound misses by thousands of variances).
 HELDOUT_GN_TRUST = 0.1
-#: How the Jacobian is computed unless a fitter is told otherwise: ``"exact"`` (the forward
-#: sensitivities of the term kernels, 2.3x faster per Jacobian than forward differences,
-#: tested against central differences) or ``"forward"`` (forward differences). Exact is
-#: the default since the families are compared again with every accepted effect
-#: (:mod:`hystdisc.closing.reselect`): measured with ``benchmarks/check_unchanged.py``,
-#: both give the same family, effects and parameters (to 0.01 standard errors) on every
-#: ``data_synth/*.csv``. Before that, at 68d5560, the loop added ``coulomb`` on
-#: ``effect_quadratic_damping.csv`` with the exact one: it trimmed the misfit of the wrong
-#: Bouc-Wen form, which the table had selected and which now loses to the true one.
-JACOBIAN = "exact"
 
 
 @dataclass
@@ -182,12 +165,11 @@ class OutputErrorFitter:
         Limit of Jacobian evaluations (Levenberg-Marquardt iterations).
     rel_step : float
         Relative step of the forward differences (and of a channel delay's column).
-    jacobian_mode : {"exact", "forward"}, optional
-        How :meth:`jacobian` is computed (default :data:`JACOBIAN`): ``"exact"`` uses the
-        forward sensitivities of the term kernels for a model in term form and of the
-        error-controlled integrator for a state-space model with compiled partial
-        derivatives (forward differences for any other), ``"forward"`` forward
-        differences always.
+    jacobian_mode : {"exact", "lockstep", "terms", "forward"}, optional
+        How :meth:`jacobian` is computed (:data:`~hystdisc.fitting.jacobian.JACOBIAN_MODES`;
+        default: the data's :attr:`~hystdisc.measurement.FitData.jacobian`, ``"exact"``
+        unless set). The fits inside this one (the bulk, the held-out folds) compute
+        theirs alike.
     """
 
     def __init__(
@@ -198,19 +180,20 @@ class OutputErrorFitter:
         rel_step: float = 1e-6,
         jacobian_mode: str | None = None,
     ) -> None:
-        mode = JACOBIAN if jacobian_mode is None else jacobian_mode
-        if mode not in ("exact", "forward"):
-            raise HystdiscError(f"unknown Jacobian mode '{mode}'; fix: use exact or forward")
+        mode = check_jacobian_mode(data.jacobian if jacobian_mode is None else jacobian_mode)
         self.data = data
         self.par = par
         self.max_nfev = max_nfev
         self.rel_step = rel_step
         self.jacobian_mode = mode
+        system = isinstance(par, SystemParametrization)
         #: The Jacobian is taken from the kernels' sensitivities (a term-form model).
-        self.exact = mode == "exact" and not isinstance(par, SystemParametrization)
+        self.exact = mode != "forward" and not system
         #: The Jacobian is the integrator's sensitivities (a state-space model with
         #: compiled partial derivatives).
         self.exact_system = mode == "exact" and exact_applies(par)
+        #: The Jacobian is the lockstep internal differentiation (a state-space model).
+        self.lockstep = mode == "lockstep" and system
         self.npar = len(par.names)
         self.state = par.has_state()
         self.nnu = data.n_nuisance(self.state)
@@ -255,10 +238,6 @@ class OutputErrorFitter:
             [(p - self.data.y[r])[self.masks[r]] for p, r in zip(preds, runs, strict=True)]
         )
 
-    def _measured(self) -> np.ndarray:
-        """The measured output at the residual's rows (in its order)."""
-        return np.concatenate([y[m] for y, m in zip(self.data.y, self.masks, strict=True)])
-
     def residuals(self, v, work_out: list | None = None):
         """Simulated minus measured output of every run at the vector ``v`` (the model's
         parameters, then each run's nuisance ones), masked samples left out, runs
@@ -277,17 +256,18 @@ class OutputErrorFitter:
     def jacobian(self, v: np.ndarray) -> np.ndarray:
         """Jacobian of :meth:`residuals` (masked rows, all of ``v``).
 
-        With ``jacobian_mode="exact"`` (the default :data:`JACOBIAN`), the kernels'
-        sensitivities for a model in term form
-        (:func:`~hystdisc.fitting.jacobian.exact_jacobian`) and the integrator's for a
+        As the fitter's ``jacobian_mode`` says
+        (:data:`~hystdisc.fitting.jacobian.JACOBIAN_MODES`): the kernels' sensitivities
+        for a model in term form
+        (:func:`~hystdisc.fitting.jacobian.exact_jacobian`), the integrator's for a
         state-space model with compiled partial derivatives
-        (:func:`~hystdisc.fitting.system_sensitivity.system_exact_jacobian`). Forward
-        differences (:meth:`difference_jacobian`) where the simulation diverges, for any
-        other state-space model, and with ``jacobian_mode="forward"``; lockstep differences for a
-        state-space model when ``system_jacobian.METHOD`` is ``"lockstep"``
-        (:func:`~hystdisc.fitting.system_jacobian.system_jacobian`).
+        (:func:`~hystdisc.fitting.system_sensitivity.system_exact_jacobian`), lockstep
+        differences for a state-space model
+        (:func:`~hystdisc.fitting.system_jacobian.system_jacobian`), else forward
+        differences (:meth:`difference_jacobian`), which are also taken where the
+        simulation diverges.
         """
-        if self.jacobian_mode != "forward" and lockstep_applies(self.par):
+        if self.lockstep:
             return system_jacobian(
                 self.data, self.par, v, self.rel_step, self.masks, self.row_offsets
             )
@@ -438,82 +418,8 @@ class OutputErrorFitter:
         # without a filter)
         n_eff = self.data.n_eff() if any(self.data.run_filters()) else float(N)
         bic = _bic(rss, N, k, n_eff=n_eff)
-        s2 = rss / max(N - k, 1)
-        # covariance with column scaling for conditioning
-        # the small Gram matrix, column-scaled (no scaled copy of the tall Jacobian)
         gram = self.gram(Jm)
-        scale = np.sqrt(np.clip(np.diag(gram), 0.0, None))
-        scale[scale == 0] = 1.0
-        # eigen-decomposition of the small Gram matrix (much cheaper than an SVD of J)
-        ev, V = np.linalg.eigh(gram / np.outer(scale, scale))
-        order = np.argsort(-ev)
-        S = np.sqrt(np.clip(ev[order], 0.0, None))
-        Vt = V[:, order].T
-        tol = S.max() * 1e-10 if S.size else 0.0
-        Sinv = np.where(S > tol, 1.0 / np.where(S > tol, S, 1.0), 0.0)
-        cov_s = (Vt.T * Sinv**2) @ Vt
-        ainv = cov_s / np.outer(scale, scale)
-        cov = s2 * ainv * (N / n_eff)  # a declared filter's correlation widens them
-        if self.data.quantum > 0:  # quantization error: correlated, a sandwich
-            sizes = [int(np.count_nonzero(m)) for m in self.masks]
-            pred = self._measured() + res
-            B = quantization_information_by_dwell(Jm, pred, self.data.quantum, sizes)
-            cov = s2 * ainv @ B @ ainv
-        # errors in the imposed motion: the force noise's part plus the motion's
-        motion = motion_covariance(self.data, self.par, x, nu, Jm, gram, ainv, self.row_offsets)
-        if motion is not None:
-            cov = cov * motion.force_scale(rss) + motion.cov
-        covx = cov[: self.npar, : self.npar]
-        # propagate to reported (incl. derived) parameters
-        p = self.par.params(x)
-        keys = list(p)
-        G = np.zeros((len(keys), self.npar))
-        for j in range(self.npar):
-            h = 1e-7 * max(abs(x[j]), 1e-6)
-            xj = x.copy()
-            xj[j] += h
-            pj = self.par.params(xj)
-            G[:, j] = [(pj[kk] - p[kk]) / h for kk in keys]
-        covp = G @ covx @ G.T
-        se = np.sqrt(np.clip(np.diag(covp), 0, None))
-        # the pseudo-inverse gives a direction the data leave flat (a singular value below
-        # tol) no variance; its parameters are not bounded at all: infinite intervals
-        flat = np.abs(Vt[S <= tol][:, : self.npar]) > FLAT_LOADING
-        if flat.size:
-            free = flat.any(axis=0)
-            se[(np.abs(G[:, free]) > 0).any(axis=1)] = np.inf
-        ci = {kk: (p[kk] - Z95 * s, p[kk] + Z95 * s) for kk, s in zip(keys, se, strict=True)}
-        stderr = dict(zip(keys, map(float, se), strict=True))
-        notes: list[str] = []
-        ident = {kk: bool(Z95 * stderr[kk] <= abs(p[kk])) for kk in keys}
-        # near-singular directions of the (global-parameter) scaled Jacobian
-        cond = S[0] / S[-1] if S.size and S[-1] > 0 else np.inf
-        if cond > 1e6 and S.size:
-            vec = Vt[-1][: self.npar]
-            order = np.argsort(-np.abs(vec))[:3]
-            combo = " ".join(
-                f"{vec[j] * np.sign(vec[order[0]]):+.2f}*{self.par.names[j]}"
-                for j in order
-                if abs(vec[j]) > 0.1
-            )
-            notes.append(
-                f"near-singular direction (condition {cond:.1e}): {combo} (scaled) is not "
-                "determined by the data"
-            )
-            for j in order:
-                if abs(vec[j]) > 0.3 and self.par.names[j] in ident:
-                    ident[self.par.names[j]] = False
-        for kk in keys:
-            if not np.isfinite(stderr[kk]):
-                notes.append(
-                    f"{kk} is not identifiable (the data leave a direction of the fit flat: "
-                    "no finite interval)"
-                )
-            elif not ident[kk]:
-                notes.append(
-                    f"{kk} is not identifiable (95 % interval [{ci[kk][0]:.4g}, {ci[kk][1]:.4g}] "
-                    f"is wider than its value {p[kk]:.4g})"
-                )
+        iv = fit_intervals(self.data, self.par, x, nu, res, Jm, gram, self.row_offsets, n_eff)
         runs = list(range(self.data.n_runs))
         tm = self.par.model(x)
         status: list = []
@@ -523,11 +429,11 @@ class OutputErrorFitter:
             par=self.par,
             x=x,
             nuisance=nu,
-            params=p,
-            ci95=ci,
-            stderr=stderr,
-            identifiable=ident,
-            notes=notes,
+            params=iv.params,
+            ci95=iv.ci95,
+            stderr=iv.stderr,
+            identifiable=iv.identifiable,
+            notes=iv.notes,
             rms=rms,
             rss=rss,
             n_obs=N,

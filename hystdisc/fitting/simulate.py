@@ -6,7 +6,9 @@ one compiled call (the seed's families, effects, discovered structures);
 the error-controlled integrator. Both return each entry's predicted output as the
 acquisition records it (a channel delay and a declared filter applied:
 :func:`~hystdisc.measurement.chain.measured_output`), with a diverged entry's non-finite
-samples replaced by a large finite value the optimizer backs away from.
+samples replaced by a large finite value the optimizer backs away from. Both integrate as
+the data's :attr:`~hystdisc.measurement.FitData.integration` says
+(:class:`~hystdisc.simulation.Integration`: the fits' settings by default).
 :func:`simulate_sensitivities` runs one term model with the exact derivatives of its
 output (the output-error Jacobian).
 """
@@ -27,22 +29,6 @@ from hystdisc.simulation import driven_shared, mech_batch, simulate_system
 from hystdisc.simulation.batch import driven_sens_batch, mech_sens_batch
 from hystdisc.simulation.parallel import map_entries
 
-#: Sub-step ratio used while fitting (errors ~1e-6 of the signal, far below any noise).
-FIT_RATIO = 0.4
-#: Fewest sub-steps per sample interval while fitting.
-FIT_MIN_SUB = 1
-#: Sub-step cap while fitting: a candidate with a near-discontinuous state (a Dahl rate
-#: fitted to Bingham data) is not worth resolving exactly inside the optimizer.
-FIT_MAX_SUB = 8
-#: Tolerances of the error-controlled integrator inside a fit: forward differences of
-#: separately controlled runs (the default ``system_jacobian.METHOD``) need 1e-10 / 1e-13;
-#: the lockstep Jacobian needs only ``system_jacobian.LOCKSTEP_RTOL`` / ``ATOL``.
-SYSTEM_RTOL = 1e-10
-SYSTEM_ATOL = 1e-13
-#: Steps of the error-controlled integrator per measured sample interval while fitting: a
-#: candidate whose dynamics need more (a series mass driven towards zero, a stiff wheel)
-#: counts as diverged, and the optimizer backs away.
-SYSTEM_MAX_STEPS = 200
 #: What a diverged prediction is replaced by.
 DIVERGED = 1e6
 
@@ -77,14 +63,15 @@ def _kernel_inputs(
     that much earlier (:func:`delayed_motion`)."""
     exp = data.exp
     steps = data.run_steps()
+    how = data.integration
     # the sub-step cap is per measured sample interval: a decimated run gets q times more
-    max_sub = np.array([FIT_MAX_SUB * steps[r] for r in runs], dtype=np.int64)
+    max_sub = np.array([how.max_sub * steps[r] for r in runs], dtype=np.int64)
     offsets = np.zeros(len(runs) + 1, dtype=np.int64)
     offsets[1:] = np.cumsum([len(data.t[r]) for r in runs])
     out: dict = {
         "t": np.concatenate([data.t[r] for r in runs]),
         "offsets": offsets,
-        "steps": {"ratio": FIT_RATIO, "min_sub": FIT_MIN_SUB, "max_sub": max_sub},
+        "steps": {"ratio": how.ratio, "min_sub": how.min_sub, "max_sub": max_sub},
     }
     if exp.motion_imposed:
         taus = delays if delays is not None else [0.0] * len(runs)
@@ -289,6 +276,7 @@ def simulate_systems(
     """
     windows = data.run_filters()
     steps = data.run_steps()
+    how = data.integration
 
     def one(entry) -> tuple[np.ndarray, bool]:
         (model, values), r, nu = entry
@@ -302,9 +290,9 @@ def simulate_systems(
                 values,
                 current=float(data.currents[r]),
                 inputs=system_inputs(data, r, model, tau),
-                rtol=SYSTEM_RTOL,
-                atol=SYSTEM_ATOL,
-                max_steps_per_sample=SYSTEM_MAX_STEPS * steps[r],
+                rtol=how.rtol,
+                atol=how.atol,
+                max_steps_per_sample=how.max_steps * steps[r],
             ).y
             bad = not np.all(np.isfinite(y))
         except HystdiscError:

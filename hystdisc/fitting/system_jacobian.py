@@ -11,7 +11,8 @@ per initial state of the run) are integrated in lockstep
 rejections and the sample ends that the nominal's error control chose, so the copies
 sample one discrete solution map that is smooth in the parameters, and their forward
 differences are its derivatives at any tolerance. One compiled call per run gives the
-run's output and all its columns.
+run's output and all its columns. A fit uses it with ``jacobian_mode="lockstep"``
+(:class:`~hystdisc.fitting.output_error.OutputErrorFitter`).
 
 The columns follow :meth:`~hystdisc.fitting.output_error.OutputErrorFitter.jacobian`
 exactly: the same steps, a step flipped below a parameter at its upper bound, masked rows
@@ -34,33 +35,28 @@ from __future__ import annotations
 import numpy as np
 
 import hystdisc.fitting.simulate as _sim
-from hystdisc.fitting.parametrization import Parametrization, SystemParametrization
+from hystdisc.fitting.parametrization import SystemParametrization
 from hystdisc.measurement.chain import measured_output
 from hystdisc.measurement.fitdata import FitData
+from hystdisc.simulation import Integration
 from hystdisc.simulation.ode import simulate_lockstep
 
-#: How the Jacobian of a state-space model is computed: ``"lockstep"`` (this module) or
-#: ``"forward"`` (the fitter's forward differences of separately controlled runs, which
-#: need the integration far tighter than the difference step). The default stays
-#: ``"forward"`` with the tolerances it needs (``SYSTEM_RTOL`` 1e-10): with lockstep, the
-#: compliant wheel's refit ends in another basin (``tests/test_compliance.py``).
-METHOD = "forward"
-#: The integration tolerances the lockstep Jacobian needs (set ``SYSTEM_RTOL``/``ATOL`` of
-#: :mod:`hystdisc.fitting.simulate` to them with ``METHOD = "lockstep"``): measured on the
-#: MR damper set, the force within 8e-4 N of a 1e-12 integration (noise 0.04 N).
+#: The integration tolerances the lockstep Jacobian needs (measured on the MR damper set:
+#: the force within 8e-4 N of a 1e-12 integration, noise 0.04 N); a fit with
+#: ``jacobian_mode="lockstep"`` may integrate at them (:data:`LOCKSTEP_INTEGRATION`) where
+#: forward differences of separately controlled runs need the fits' default 1e-10 / 1e-13.
+#: The lockstep is not the default: with it, the compliant wheel's refit ends in another
+#: basin (``tests/test_compliance.py``).
 LOCKSTEP_RTOL = 1e-8
 LOCKSTEP_ATOL = 1e-11
+#: The fits' integration with the lockstep Jacobian's tolerances (the pipeline's
+#: ``Options(jacobian="lockstep", integration=LOCKSTEP_INTEGRATION)``).
+LOCKSTEP_INTEGRATION = Integration(rtol=LOCKSTEP_RTOL, atol=LOCKSTEP_ATOL)
 #: A perturbed copy may move the output by at most this fraction of the nominal output's
 #: range (a parameter step of ``rel_step`` moves it by about that much of it); a copy
 #: beyond it has excited a fast mode the nominal's steps do not resolve (a perturbed
 #: initial angle against a stiff wheel), and its run is differenced by separate runs.
 LOCKSTEP_MAX_MOVE = 1e-2
-
-
-def lockstep_applies(par: Parametrization) -> bool:
-    """The Jacobian of a fit of ``par`` is computed here (:data:`METHOD` is lockstep and
-    ``par`` is simulated by the error-controlled integrator)."""
-    return METHOD == "lockstep" and isinstance(par, SystemParametrization)
 
 
 def difference_steps(v: np.ndarray, rel_step: float) -> np.ndarray:
@@ -156,15 +152,16 @@ def _lockstep_run(data, r, nominal, perturbed, nu, nu_steps) -> np.ndarray | Non
         X0.append(_sim.system_start(data, system, nq))
         delays.append(delays[0])
     t = data.t[r]
+    how = data.integration
     Y = simulate_lockstep(
         system,
         t,
         np.array(X0),
         np.array(P),
         _sim.system_inputs(data, r, system),
-        rtol=_sim.SYSTEM_RTOL,
-        atol=_sim.SYSTEM_ATOL,
-        max_steps_per_sample=_sim.SYSTEM_MAX_STEPS * data.run_steps()[r],
+        rtol=how.rtol,
+        atol=how.atol,
+        max_steps_per_sample=how.max_steps * data.run_steps()[r],
     )
     if Y is None or not np.all(np.isfinite(Y[0])):
         return None

@@ -29,19 +29,11 @@ from hystdisc.measurement.fitdata import FitData
 from hystdisc.simulation.parallel import map_entries
 from hystdisc.simulation.sensitivity_ode import has_sensitivities, simulate_system_sensitivities
 
-#: False: every state-space model takes forward differences, as before the sensitivities
-#: (``benchmarks/system_jacobian.py`` compares the two).
-ENABLED = True
-
 
 def exact_applies(par: Parametrization) -> bool:
-    """Whether the Jacobian of a fit of ``par`` is computed here (a state-space model with
-    compiled partial derivatives, and :data:`ENABLED`)."""
-    return (
-        ENABLED
-        and isinstance(par, SystemParametrization)
-        and has_sensitivities(par.model(par.x0)[0])
-    )
+    """Whether the Jacobian of a fit of ``par`` can be computed here (a state-space model
+    with compiled partial derivatives; the fitter asks it with ``jacobian_mode="exact"``)."""
+    return isinstance(par, SystemParametrization) and has_sensitivities(par.model(par.x0)[0])
 
 
 def _packed(data: FitData, par: SystemParametrization, x: np.ndarray) -> np.ndarray:
@@ -102,6 +94,7 @@ def system_exact_jacobian(
     of_state = [system.states.index(n[:-1]) if n[:-1] in system.states else -1 for n in names]
     starts = [i for i in of_state if i >= 0]
     steps = data.run_steps()
+    how = data.integration
 
     def delay_of(xj: np.ndarray) -> float:
         s, v = par.model(xj)
@@ -116,9 +109,9 @@ def system_exact_jacobian(
             moving,
             starts,
             inputs=_sim.system_inputs(data, r, system, system.output_delay(values0)),
-            rtol=_sim.SYSTEM_RTOL,
-            atol=_sim.SYSTEM_ATOL,
-            max_steps_per_sample=_sim.SYSTEM_MAX_STEPS * steps[r],
+            rtol=how.rtol,
+            atol=how.atol,
+            max_steps_per_sample=how.max_steps * steps[r],
         )
         if out is None or not np.all(np.isfinite(out[0])) or not np.all(np.isfinite(out[1])):
             return None

@@ -24,7 +24,7 @@ import numpy as np
 
 from hystdisc.data.conditions import condition_folds
 from hystdisc.registry import get_experiment
-from hystdisc.simulation import input_slopes
+from hystdisc.simulation import Integration, input_slopes
 from hystdisc.stats import samples_per_cycle
 
 if TYPE_CHECKING:
@@ -64,12 +64,20 @@ class FitData:
     #: Quantization error is a fixed sawtooth of the true output, correlated wherever the
     #: output dwells within a step, and the fit's intervals account for it
     quantum: float = 0.0
-    #: driven: each run's motion estimate and how it errs (None: the motion is exact, or
-    #: not imposed); its errors enter the intervals (fitting/motion_error.py). A decimated
-    #: copy has none: only a fit's final, full-data intervals propagate them
+    #: driven: each run's motion estimate and how it errs (None: the motion is exact, not
+    #: imposed, or its errors are not to be propagated); its errors enter the intervals
+    #: (fitting/motion_error.py). A decimated copy has none: only a fit's final,
+    #: full-data intervals propagate them
     motion_errors: list[MotionEstimate | None] | None = None
     #: driven: the noise on the measured motion (``results.json``: ``motion_noise``)
     motion_noise: MotionNoise | None = None
+    #: how the fits of these data integrate their candidates (the pipeline's
+    #: ``Options.integration``); every copy (a subset, the bulk) integrates alike
+    integration: Integration = field(default_factory=Integration)
+    #: how a fit of these data computes its Jacobian unless its fitter is told otherwise
+    #: (``jacobian_mode`` of :class:`~hystdisc.fitting.OutputErrorFitter`; the pipeline's
+    #: ``Options.jacobian``)
+    jacobian: str = "exact"
     _bulk: FitData | None = field(default=None, init=False, repr=False, compare=False)
     _bulk_done: bool = field(default=False, init=False, repr=False, compare=False)
 
@@ -156,6 +164,8 @@ class FitData:
             n_bulk = sum(-(-t.size // q) for t, q in zip(self.t, qs, strict=True))
             if n_bulk <= n_full / 2:
                 self._bulk = self.decimated(qs)
+        if self._bulk is not None:  # the fit settings as they are now (set after the copy)
+            self._bulk.integration, self._bulk.jacobian = self.integration, self.jacobian
         return self._bulk
 
     def decimated(self, qs: list[int]) -> FitData:
@@ -184,6 +194,8 @@ class FitData:
             self.quantum,
             None,
             self.motion_noise,
+            self.integration,
+            self.jacobian,
         )
 
     def subset(self, idx: list[int]) -> FitData:
@@ -208,6 +220,8 @@ class FitData:
             self.quantum,
             None if self.motion_errors is None else pick(self.motion_errors),
             self.motion_noise,
+            self.integration,
+            self.jacobian,
         )
 
     def folds(self) -> list[list[int]]:

@@ -8,7 +8,7 @@ derivative analytic) when its residual is at the motion noise, else local sevent
 polynomial fits over at most half the shortest cycle
 (:func:`hystdisc.data.motion.local_motion`: nearly unbiased, noisier), and says why in its
 ``note``. The smoother of the equation-error stage (:func:`hystdisc.discovery.differentiate`,
-what the fit used before issue 33, ``MOTION = "legacy"``) passed 99.67 % of a 5 Hz velocity
+what the fit used before issue 33, ``mode="legacy"``) passed 99.67 % of a 5 Hz velocity
 at 500 Hz and biased the dashpots by 3 standard errors on issue 33's command (its
 intervals then missed the truth of c_1, c_2, delta and k_s). Every estimate is a linear
 operator ``S`` on the measured motion, so its random error is ``S`` applied to the motion
@@ -61,6 +61,7 @@ from hystdisc.data.motion import (
 )
 from hystdisc.discovery import differentiate
 from hystdisc.discovery.differentiation import POLYORDER, block_factor
+from hystdisc.errors import HystdiscError
 from hystdisc.measurement.chain import unfiltered_motion
 
 #: Noise draws of a motion estimate whose error is not written out (local fits, the
@@ -71,10 +72,12 @@ MOTION_DRAWS = 100
 MOTION_SEED = 33
 #: Samples simulated at once while propagating (bounds the memory of the copies).
 CHUNK_SAMPLES = 2_000_000
-#: How driven runs' motion is estimated: ``"auto"`` (the harmonic series where it is
-#: accepted, else local polynomial fits) or ``"legacy"`` (the equation-error stage's
-#: smoother, as before issue 33: kept to measure the change against).
-MOTION = "auto"
+#: How a driven run's motion may be estimated (``mode`` of :func:`estimate_motion`; the
+#: pipeline's ``Options.motion``): ``"auto"`` (the harmonic series where it is accepted,
+#: else local polynomial fits) or ``"legacy"`` (the equation-error stage's smoother, as
+#: before issue 33: kept to measure the change against,
+#: ``benchmarks/interval_coverage_driven.py``).
+MOTION_MODES = ("auto", "legacy")
 
 
 @dataclass
@@ -88,7 +91,7 @@ class MotionEstimate:
         polynomial fits, :func:`~hystdisc.data.motion.local_motion`), ``"filter"`` (the
         motion before a rig's declared filter,
         :func:`~hystdisc.measurement.chain.unfiltered_motion`) or ``"smoother"`` (the
-        equation-error stage's, with :data:`MOTION` ``"legacy"``).
+        equation-error stage's, with ``mode="legacy"``).
     noise : RunMotionNoise
         The noise on the measured motion.
     theta, theta_dot, theta_ddot : ndarray
@@ -207,6 +210,7 @@ def estimate_motion(
     smoother_noise: float | None = None,
     seed: int = 0,
     noise: RunMotionNoise | None = None,
+    mode: str = "auto",
 ) -> MotionEstimate:
     """One driven run's motion estimate (see the module).
 
@@ -221,12 +225,14 @@ def estimate_motion(
         The run's seed for drawn modes (its index in the dataset).
     noise : RunMotionNoise, optional
         The run's motion noise (default: :func:`~hystdisc.data.motion.motion_noise`).
+    mode : {"auto", "legacy"}
+        How the motion is estimated (:data:`MOTION_MODES`).
 
     Returns
     -------
     MotionEstimate
-        ``harmonic`` when the series is accepted, else ``local`` (with :data:`MOTION`
-        ``"legacy"``: ``smoother``).
+        ``harmonic`` when the series is accepted, else ``local`` (with ``mode="legacy"``:
+        ``smoother``).
 
     Examples
     --------
@@ -238,11 +244,13 @@ def estimate_motion(
     >>> est.method, est.edge, est.note.split(":")[0]
     ('local', 14, 'residual RMS 92 times the motion noise')
     """
+    if mode not in MOTION_MODES:
+        raise HystdiscError(f"unknown motion estimate '{mode}'; fix: use auto or legacy")
     t = np.asarray(t, dtype=float)
     x = np.asarray(theta, dtype=float)
     noise = motion_noise(t, x) if noise is None else noise
     d = differentiate(t, x, noise.std if smoother_noise is None else smoother_noise)
-    if MOTION == "legacy":  # as before issue 33: the equation-error stage's smoother
+    if mode == "legacy":  # as before issue 33: the equation-error stage's smoother
         op = smoother_operator(t, d.window)
         return MotionEstimate(
             "smoother", noise, d.theta, d.theta_dot, d.theta_ddot, d.window, None, op, seed,

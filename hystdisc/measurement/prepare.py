@@ -29,11 +29,19 @@ from hystdisc.measurement.fitdata import FitData
 from hystdisc.measurement.motion import estimate_motion, filter_estimate
 from hystdisc.measurement.outliers import screen_runs
 from hystdisc.registry import experiment_names, get_experiment
+from hystdisc.simulation import Integration
 from hystdisc.stats import samples_per_cycle
 
 
 def prepare_data(
-    dataset: Dataset, experiment: str | None = None, input_hold: str = "cubic"
+    dataset: Dataset,
+    experiment: str | None = None,
+    input_hold: str = "cubic",
+    *,
+    motion: str = "auto",
+    motion_errors: bool = True,
+    jacobian: str = "exact",
+    integration: Integration | None = None,
 ) -> tuple[EqData, FitData, list[dict], NoiseEstimate]:
     """The stage-1 and stage-2 data of ``dataset``.
 
@@ -45,6 +53,17 @@ def prepare_data(
         The experiment type (default: the dataset's).
     input_hold : {"cubic", "linear", "zoh"}
         Forced experiments: the input between samples.
+    motion : {"auto", "legacy"}
+        Driven: how the imposed motion is estimated (``mode`` of
+        :func:`~hystdisc.measurement.motion.estimate_motion`).
+    motion_errors : bool
+        Driven: the motion estimate's errors enter the fits' intervals
+        (:attr:`FitData.motion_errors`; False: none, as before issue 33).
+    jacobian : str
+        How the fits of these data compute their Jacobian (:attr:`FitData.jacobian`).
+    integration : Integration, optional
+        How the fits of these data integrate (:attr:`FitData.integration`; default: the
+        fits' own settings).
 
     Returns
     -------
@@ -101,19 +120,23 @@ def prepare_data(
         [],
         noise,
         input_hold,
+        integration=Integration() if integration is None else integration,
+        jacobian=jacobian,
     )
     windows = []
     # driven: the measured motion is estimated (a harmonic series of a periodic run, else
     # local fits), its noise and the estimate's errors carried to the intervals
-    motion = []
+    motion_estimates = []
     # a motion recorded through a declared filter: the fit's is reconstructed below, and
     # the equation-error stage keeps the smoothed record, as before the estimates
     filtered = dataset.filter is not None and "theta" in dataset.filter["channels"]
     for k, r in enumerate(runs):
         est = None
         if exp.motion_imposed and np.ptp(r.theta) > 0:
-            est = estimate_motion(r.t, r.theta, theta_noise, k, motion_noise(r.t, r.theta))
-            motion.append(est)
+            est = estimate_motion(
+                r.t, r.theta, theta_noise, k, motion_noise(r.t, r.theta), mode=motion
+            )
+            motion_estimates.append(est)
         d = est if est is not None and not filtered else differentiate(r.t, r.theta, theta_noise)
         windows.append(d.window)
         if not np.all(np.isfinite(d.theta_dot)) or np.ptp(r.theta) == 0:
@@ -150,18 +173,19 @@ def prepare_data(
     if dataset.filter is not None:  # the fit sees the damper through the rig's filter
         windows = filter_windows(dataset.filter, runs, dataset.source)
         apply_filter(fd, windows, dataset.filter["channels"], [r.theta for r in runs])
-        if motion and filtered:
-            motion = [
+        if motion_estimates and filtered:
+            motion_estimates = [
                 filter_estimate(est, r.t, r.theta, w) if w > 1 else est
-                for est, r, w in zip(motion, runs, windows, strict=True)
+                for est, r, w in zip(motion_estimates, runs, windows, strict=True)
             ]
-    if motion:
-        fd.motion_errors = motion
+    if motion_estimates:
+        if motion_errors:
+            fd.motion_errors = motion_estimates
         fd.motion_noise = pooled_motion_noise(
-            [r.name for r in runs], [r.t.size for r in runs], [est.noise for est in motion]
+            [r.name for r in runs], [r.t.size for r in runs], [e.noise for e in motion_estimates]
         )
         fd.motion_noise.estimates = {
-            r.name: est.summary() for r, est in zip(runs, motion, strict=True)
+            r.name: est.summary() for r, est in zip(runs, motion_estimates, strict=True)
         }
     if model.method == "quantization" and model.output_quantization:
         fd.quantum = float(model.output_quantization.step)

@@ -9,7 +9,9 @@ from __future__ import annotations
 import warnings
 
 from hystdisc.data import Dataset, distinct_currents, validate
-from hystdisc.errors import HystdiscWarning
+from hystdisc.errors import HystdiscError, HystdiscWarning
+from hystdisc.fitting.jacobian import check_jacobian_mode
+from hystdisc.measurement.motion import MOTION_MODES
 from hystdisc.measurement.prepare import prepare_data
 from hystdisc.models import FAMILIES
 from hystdisc.pipeline.state import State
@@ -42,7 +44,13 @@ def prepare(state: State) -> None:
             stacklevel=4,
         )
     state.say("preparing data (noise, derivatives)")
-    eq, fd, state.glitches, state.noise = prepare_data(dataset, opts.experiment, opts.input_hold)
+    check_jacobian_mode(opts.jacobian)  # before any fit, not in each one's failure
+    if opts.motion not in MOTION_MODES:
+        raise HystdiscError(f"unknown motion estimate '{opts.motion}'; fix: use auto or legacy")
+    eq, fd, state.glitches, state.noise = prepare_data(
+        dataset, opts.experiment, opts.input_hold, motion=opts.motion,
+        motion_errors=opts.motion_errors, jacobian=opts.jacobian, integration=opts.integration,
+    )  # fmt: skip
     state.eq_data, state.fit_data, state.experiment = eq, fd, eq.experiment
     exp = get_experiment(eq.experiment)
     terms = list(opts.torque_terms)

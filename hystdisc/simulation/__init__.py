@@ -4,7 +4,8 @@
   discovered structure (release, forced, driven), on the fixed-step term kernels
   (:mod:`~hystdisc.simulation.kernels`, batched by :mod:`~hystdisc.simulation.batch`);
 - :mod:`~hystdisc.simulation.ode`: any state-space model, with one error-controlled
-  integrator;
+  integrator; :class:`~hystdisc.simulation.integration.Integration`: the integrators'
+  settings inside a fit;
 - :mod:`~hystdisc.simulation.synth`: synthetic datasets (``hystdisc simulate``);
 - :mod:`~hystdisc.simulation.studies`: the seed's parameter studies.
 """
@@ -18,6 +19,7 @@ from hystdisc.simulation.batch import (
     integrate_z_flat,
     mech_batch,
 )
+from hystdisc.simulation.integration import Integration
 from hystdisc.simulation.kernels import HOLDS, MAX_SUBSTEPS, MIN_SUBSTEPS, STEP_RATIO
 from hystdisc.simulation.ode import SystemResult, simulate_system
 from hystdisc.simulation.runs import (
@@ -31,6 +33,7 @@ from hystdisc.simulation.runs import (
 
 __all__ = [
     "HOLDS",
+    "Integration",
     "MAX_SUBSTEPS",
     "MIN_SUBSTEPS",
     "STEP_RATIO",

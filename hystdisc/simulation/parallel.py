@@ -7,7 +7,10 @@ as in turn, so the results do not depend on the number of threads.
 
 The number of threads is the usable CPUs (at most :data:`MAX_THREADS`), or the limit set
 by :func:`limit_threads` around a piece of work (:class:`hystdisc.Discovery` sets its
-``n_jobs``; ``n_jobs=1`` runs everything in turn).
+``n_jobs``; ``n_jobs=1`` runs everything in turn). The limit is a context variable: two
+discoveries on two threads each keep their own, and the work this module hands to its
+threads (:func:`map_entries`, :func:`map_tasks`, :func:`map_after`) runs in a copy of the
+caller's context, so it sees the caller's limit.
 
 Examples
 --------
@@ -26,6 +29,7 @@ import threading
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
+from contextvars import ContextVar, copy_context
 from typing import Any
 
 import numpy as np
@@ -33,7 +37,8 @@ import numpy as np
 #: At most this many threads per batch.
 MAX_THREADS = 4
 
-_limit: int | None = None
+#: The :func:`limit_threads` limit of the current context (None: the usable CPUs).
+_LIMIT: ContextVar[int | None] = ContextVar("hystdisc_thread_limit", default=None)
 
 
 def usable_cpus() -> int:
@@ -47,21 +52,29 @@ def usable_cpus() -> int:
 def n_threads() -> int:
     """Threads a batch may use now (the :func:`limit_threads` limit, else the usable CPUs;
     at most :data:`MAX_THREADS`)."""
-    n = _limit if _limit is not None else usable_cpus()
+    limit = _LIMIT.get()
+    n = limit if limit is not None else usable_cpus()
     return max(1, min(n, MAX_THREADS))
 
 
 @contextmanager
 def limit_threads(n: int | None) -> Iterator[None]:
     """Limit the threads of every batch inside the ``with`` block to ``n`` (None: no
-    limit beyond the usable CPUs)."""
-    global _limit
-    before = _limit
-    _limit = None if n is None else max(1, int(n))
+    limit beyond the usable CPUs), in the current context only (another thread's limit
+    is its own; the threads of this module's maps inherit their caller's)."""
+    token = _LIMIT.set(None if n is None else max(1, int(n)))
     try:
         yield
     finally:
-        _limit = before
+        _LIMIT.reset(token)
+
+
+def _in_context(fn: Callable) -> Callable:
+    """``fn`` bound to a copy of the calling thread's context (its :func:`limit_threads`
+    limit): call this in the thread that hands the work out, once per task (a context
+    can be entered by one thread at a time)."""
+    ctx = copy_context()
+    return lambda *args: ctx.run(fn, *args)
 
 
 _pool: ThreadPoolExecutor | None = None
@@ -109,8 +122,8 @@ def chunk_bounds(offsets: np.ndarray, min_samples: int) -> list[int]:
 def map_entries(fn: Callable[[Any], Any], items: Sequence[Any]) -> list[Any]:
     """``fn`` over ``items``, in order, on up to :func:`n_threads` threads of the shared
     pool, each taking the next item when it is free (entries of unequal cost); each keeps
-    the caller's floating-point error state (numpy's is per thread). ``fn`` must not wait
-    on this pool itself."""
+    the caller's floating-point error state (numpy's is per thread) and its context (the
+    thread limit). ``fn`` must not wait on this pool itself."""
     n = min(n_threads(), len(items))
     if n <= 1:
         return [fn(x) for x in items]
@@ -128,7 +141,7 @@ def map_entries(fn: Callable[[Any], Any], items: Sequence[Any]) -> list[Any]:
                     return
                 out[k] = fn(items[k])
 
-    for f in [_shared_pool().submit(lane) for _ in range(n)]:
+    for f in [_shared_pool().submit(_in_context(lane)) for _ in range(n)]:
         f.result()
     return out
 
@@ -149,8 +162,9 @@ def map_after(
     its tasks in turn, so a waiting task never holds up one it waits for.
 
     ``serial_before`` runs the ``before`` tasks in turn on the calling thread first (work
-    that draws from numpy's global generator); ``n <= 1`` runs everything in turn.
-    Returns both lists of results, in order (each task is computed as in turn).
+    that must not run beside itself); ``n <= 1`` runs everything in turn. Each task runs
+    in a copy of the caller's context (its thread limit). Returns both lists of results,
+    in order (each task is computed as in turn).
 
     Examples
     --------
@@ -164,11 +178,12 @@ def map_after(
         if n <= 1 or len(after_items) <= 1:
             return firsts, [after(x, firsts.__getitem__) for x in after_items]
         with ThreadPoolExecutor(max_workers=n) as pool:
-            return firsts, list(pool.map(lambda x: after(x, firsts.__getitem__), after_items))
+            rest = [pool.submit(_in_context(after), x, firsts.__getitem__) for x in after_items]
+            return firsts, [f.result() for f in rest]
     with ThreadPoolExecutor(max_workers=max(1, n)) as pool:
-        futs = [pool.submit(before, x) for x in before_items]
+        futs = [pool.submit(_in_context(before), x) for x in before_items]
         ready = lambda k: futs[k].result()  # noqa: E731
-        rest = [pool.submit(after, x, ready) for x in after_items]
+        rest = [pool.submit(_in_context(after), x, ready) for x in after_items]
         return [f.result() for f in futs], [f.result() for f in rest]
 
 
@@ -194,7 +209,7 @@ def _quiet(fn: Callable) -> Callable:
 def map_tasks(fn: Callable, items: Sequence[Any], n_jobs: int | None, serial: bool = False) -> list:
     """``fn`` over ``items`` (independent fits) on up to :func:`job_threads` threads, in
     order, each worker ignoring floating-point warnings (the compiled kernels release the
-    GIL).
+    GIL) and in a copy of the caller's context (its thread limit).
 
     Examples
     --------
@@ -206,7 +221,8 @@ def map_tasks(fn: Callable, items: Sequence[Any], n_jobs: int | None, serial: bo
     if serial or n <= 1 or len(items) <= 1:
         return [work(x) for x in items]
     with ThreadPoolExecutor(max_workers=min(n, len(items))) as pool:
-        return list(pool.map(work, items))
+        futs = [pool.submit(_in_context(work), x) for x in items]
+        return [f.result() for f in futs]
 
 
 def map_tasks_after(
