@@ -64,7 +64,7 @@ from hystdisc.simulation.synth import (
     scenario_model,
 )
 
-CORPUS_DIR = Path(__file__).parent / "fuzz_corpus"
+CORPUS_DIR = Path(__file__).parent / "end_to_end" / "fuzz_corpus"
 
 #: inputs tried, per reader, and outcomes: COUNTS[reader], COUNTS[reader, "ok" | "error"].
 #: Readers named "a>b" are a later stage fed with what reader "a" accepted (not new inputs).

@@ -16,7 +16,7 @@ from hystdisc.errors import HystdiscError
 from hystdisc.models import Model
 from hystdisc.simulation.synth import generate, generate_from_scenario, load_scenario
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 DATA_SYNTH = REPO / "data_synth"
 SHORT = ["--duration", "1", "--fs", "500"]
 

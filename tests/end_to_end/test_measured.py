@@ -15,7 +15,7 @@ import pytest
 from hystdisc.closing.residual import assess_residual
 from hystdisc.data import measurement_noise
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 import boucwen_benchmark as bwb  # noqa: E402
 import mr_damper as mrd  # noqa: E402
 

@@ -19,7 +19,7 @@ from hystdisc.models import FAMILIES
 from hystdisc.results import Results
 from hystdisc.simulation.synth import generate, load_scenario
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 SYNTH = ROOT / "data_synth"
 RELEASE_FAMILIES = ["bingham", "dahl", "lugre", "bouc-wen", "bouc-wen-std"]
 

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-PACKAGE = Path(__file__).resolve().parents[1] / "hystdisc"
+PACKAGE = Path(__file__).resolve().parents[2] / "hystdisc"
 
 #: Layers, lowest first (doc/develop.rst, "Package structure"); a module may import its
 #: own layer or lower ones.

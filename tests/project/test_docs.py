@@ -29,7 +29,7 @@ import pytest
 
 import hystdisc
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 #: Every module of the package (``__main__`` runs the command line when imported).
 MODULES = sorted(

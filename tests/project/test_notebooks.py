@@ -2,7 +2,7 @@
 a user runs them.
 
 The notebooks are executed, with ``HYSTDISC_NOTEBOOK_FAST=1`` (smaller data), by the docs
-build into the gallery with their outputs and figures, and ``tests/test_docs.py`` checks
+build into the gallery with their outputs and figures, and ``tests/project/test_docs.py`` checks
 them there (no errors, every cell run, figures drawn): executing them here as well would
 cost CI a minute more. Here: each is a tutorial without drawing code of its own, the
 ``notebooks`` extra installs Jupyter and what executes them, and the README's command
@@ -24,7 +24,7 @@ except ModuleNotFoundError:  # Python 3.10
 
 jupytext = pytest.importorskip("jupytext")
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 NOTEBOOKS = sorted((ROOT / "notebooks").glob("*.py"))
 CELL_TIMEOUT = 300  # s
 

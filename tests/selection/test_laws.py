@@ -225,7 +225,7 @@ def test_cli_staged_prints_the_steps_and_keeps_a_linear_truth(tmp_path, capsys):
 
     from hystdisc.cli import main
 
-    csv = Path(__file__).resolve().parents[1] / "data_synth" / "driven_bouc-wen.csv"
+    csv = Path(__file__).resolve().parents[2] / "data_synth" / "driven_bouc-wen.csv"
     out = tmp_path / "out"
     code = main(["discover", str(csv), "--staged", "--no-effects", "--quiet", "--out", str(out)])
     text = capsys.readouterr().out

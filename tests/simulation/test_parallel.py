@@ -1,8 +1,8 @@
 """Compiled simulations on threads (``hystdisc.simulation.parallel``).
 
 The bitwise equality of a batch on threads and in turn is tested where the batches live
-(``test_sensitivity.py`` for the term kernels, ``test_system_jacobian.py`` for the
-state-space integrator); here: how a batch is cut, the limit, a forked child, and the
+(``simulation/test_sensitivity.py`` for the term kernels, ``fitting/test_system_jacobian.py``
+for the state-space integrator); here: how a batch is cut, the limit, a forked child, and the
 discovery's threads (stage 1 and the first fits side by side).
 """
 

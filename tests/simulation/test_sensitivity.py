@@ -34,7 +34,7 @@ from hystdisc.simulation.batch import (
 from hystdisc.simulation.sensitivity import N_DIR
 from hystdisc.simulation.synth import generate
 
-SYNTH = Path(__file__).resolve().parents[1] / "data_synth"
+SYNTH = Path(__file__).resolve().parents[2] / "data_synth"
 CURRENTS = (0.3, 0.9)
 #: Sub-steps per sample interval held fixed in the Jacobian comparisons.
 FIXED_SUB = 3

@@ -85,7 +85,7 @@ def _ref_torque(a, th, w, z, i, eps):
         + a[10] * th * th * th
         + a[11]
         + a[12] * i * i * w
-        + a[13] * w / (w * w + eps * eps) ** 0.25  # at m = 0.5 (tests/test_thinning.py: any m)
+        + a[13] * w / (w * w + eps * eps) ** 0.25  # m = 0.5 (models/test_thinning.py: any m)
         + a[14] * i * i * s
     )
 
