@@ -18,7 +18,7 @@ from hystdisc.discovery import (
 )
 from hystdisc.discovery.shapes import N_RANGE, shape_of
 from hystdisc.models import HYSTERESIS_TERM_NAMES, TORQUE_TERM_NAMES, Z_TORQUE_TERMS
-from hystdisc.registry import get_family, term_family_names
+from hystdisc.registry import family_names, get_family
 
 
 def _state(n=200, seed=0):
@@ -227,7 +227,19 @@ def test_shape_grids_and_clipping():
 
 
 def test_family_shape_follows_the_registry():
-    assert list(FAMILY_SHAPE) == list(term_family_names())
+    # each term family's shape carries that family's own hysteresis terms
+    for name, shape in FAMILY_SHAPE.items():
+        assert SHAPES[shape].terms == tuple(get_family(name).hysteresis_terms), name
+    assert not SHAPES[FAMILY_SHAPE["bingham"]].has_state
+    assert FAMILY_SHAPE["lugre"] == FAMILY_SHAPE["dahl"]  # LuGre shares Dahl's shape
+    # the state-space families have no stage-1 shape
+    systems = [n for n in family_names() if get_family(n).is_system]
+    assert systems
+    for name in systems:
+        assert name not in FAMILY_SHAPE
+        with pytest.raises(KeyError):
+            FAMILY_SHAPE[name]
+    assert len(FAMILY_SHAPE) == len(family_names()) - len(systems)
     assert FAMILY_SHAPE == {
         "bingham": "none",
         "dahl": "dahl",
