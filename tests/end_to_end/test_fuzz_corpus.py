@@ -19,10 +19,6 @@ from ..fuzz import check_dataset, check_error
 
 CORPUS_DIR = Path(__file__).parent / "fuzz_corpus"
 
-#: Open results.json problems (in hystdisc/results/ or hystdisc/cli/predict.py), each
-#: pinned by a strict xfail that turns into a failure once fixed, so that the mark is removed.
-RESULTS_XFAIL: dict[str, str] = {}  # every reported results.py problem is fixed
-
 #: corpus file -> words its one-line error must contain ("ok": it must load)
 CORPUS: dict[str, tuple[str, ...] | str] = {
     "csv_ok_double_bom.csv": "ok",  # a BOM written twice: was "column 't' is missing (found: t,...)"
@@ -51,14 +47,13 @@ CORPUS: dict[str, tuple[str, ...] | str] = {
     "results_err_truncated.json": ("not a readable results.json",),
     "results_err_no_model.json": ("not a hystdisc results.json",),
     "results_err_unknown_term.json": ("theta^7",),
-    # fixed, each is a one-line error (any wording)
-    **{name: () for name in RESULTS_XFAIL},
-    # reported problems of results.py, now one-line errors
-    "results_xfail_deep_nesting.json": (),
-    "results_xfail_huge_int.json": (),
-    "results_xfail_nan_string.json": (),
-    "results_xfail_no_experiment.json": (),
-    "results_xfail_deep_object.json": (),
+    # problems of results.py once reported (a RecursionError, an OverflowError, a NaN model
+    # accepted, a KeyError), now one-line errors
+    "results_err_deep_nesting.json": ("not a readable results.json",),
+    "results_err_huge_int.json": ("no usable model",),
+    "results_err_nan_string.json": ("no usable model", "not finite"),
+    "results_err_no_experiment.json": ("not a hystdisc results.json",),
+    "results_err_deep_object.json": ("not a hystdisc results.json",),
 }
 
 
@@ -92,15 +87,7 @@ def test_corpus_manifest_lists_every_file():
     assert size < 16_000, f"the corpus should stay small ({size} bytes)"
 
 
-@pytest.mark.parametrize(
-    "name",
-    [
-        pytest.param(n, marks=pytest.mark.xfail(strict=True, reason=RESULTS_XFAIL[n]))
-        if n in RESULTS_XFAIL
-        else n
-        for n in sorted(CORPUS)
-    ],
-)
+@pytest.mark.parametrize("name", sorted(CORPUS))
 def test_corpus(name):
     path = CORPUS_DIR / name
     expected = CORPUS[name]
@@ -114,6 +101,8 @@ def test_corpus(name):
             for word in expected:
                 assert word in msg, f"{word!r} not in {msg!r}"
             out = None
+        else:
+            assert expected == "ok", f"{name} must be a one-line error, and it loads"
     assert not [w for w in caught if not issubclass(w.category, HystdiscWarning)]
     if expected == "ok":
         assert out is not None
