@@ -10,6 +10,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from hystdisc.data import EXPERIMENTS
 from hystdisc.errors import HystdiscError
 from hystdisc.models import TermModel
 from hystdisc.results import Results
@@ -31,7 +32,7 @@ def _results_outcome(path: Path):
     if res is None:
         return None
     exp = res.experiment
-    assert exp is None or isinstance(exp, (str, int, float, list, dict, bool))
+    assert exp is None or exp in EXPERIMENTS, exp  # a name the registry knows
     models = [attempt("results>term_model", res.term_model)]
     fams = res.families
     if isinstance(fams, dict):

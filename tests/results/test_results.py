@@ -187,6 +187,17 @@ def test_malformed_structure_is_one_line(tmp_path, key, value, where):
     assert where in msg and "fix:" in msg and "\n" not in msg
 
 
+@pytest.mark.parametrize("value", [5, "bogus", ["release"]])
+def test_an_unknown_experiment_is_one_line(tmp_path, value):
+    _, old = _schema1("no_loop")
+    path = tmp_path / "r.json"
+    path.write_text(json.dumps({**old, "experiment": value}))
+    with pytest.raises(HystdiscError) as exc:
+        Results.load(path)
+    msg = str(exc.value)
+    assert "experiment" in msg and "release" in msg and "fix:" in msg and "\n" not in msg
+
+
 def test_every_attribute_is_documented():
     for cls in (Results, *RECORDS):
         doc = inspect.getdoc(cls)
