@@ -404,11 +404,10 @@ class Results(Record):
                 f"{p}: not a hystdisc results.json (no 'families'/'model'/'experiment' keys); "
                 "fix: give the file written by hystdisc discover --json"
             )
-        exp = data["experiment"]
-        if exp is not None and (not isinstance(exp, str) or exp not in experiment_names()):
+        if data["experiment"] not in (None, *experiment_names()):
             raise HystdiscError(
-                f"{p}: not a hystdisc results.json (experiment {str(exp)[:40]!r} is not one of "
-                f"{', '.join(experiment_names())}); {_FIX_RERUN}"
+                f"{p}: not a hystdisc results.json (experiment {str(data['experiment'])[:40]!r} "
+                f"is not one of {', '.join(experiment_names())}); {_FIX_RERUN}"
             )
         try:
             return cls.from_dict(data)
