@@ -330,7 +330,7 @@ def report(
     if subset:
         lines += [
             "",
-            f"Small check run by `tests/test_measured.py` (in process, all five families, no "
+            f"Small check run by `tests/end_to_end/test_measured.py` (in process, all five families, no "
             f"loop): discover on {' + '.join(CI_TRAIN)} (10 files), predict {CI_TEST}: selected "
             f"{subset['family']} (fit RMS {subset['fit_rms'][subset['family']]:.1f} N), "
             f"held-out RMS {subset['model'][0]:.1f} N, NRMSE {subset['model'][1]:.1%}; Bingham "

@@ -13,7 +13,7 @@ read (``data_synth/``), with this tree's package. Usage, from the repository roo
     python doc/quickstart.py            # run it all; exit 1 and show the differences if any
     python doc/quickstart.py --update   # run it all and write the outputs into README.md
 
-``tests/test_quickstart.py`` runs the check.
+``tests/project/test_quickstart.py`` runs the check.
 """
 
 from __future__ import annotations

@@ -1,4 +1,5 @@
-"""Shared test set-up: a non-interactive matplotlib backend and the measured-data folder."""
+"""Shared test set-up: a non-interactive matplotlib backend, the measured-data folder and
+the fuzz tests' scratch folder and counts."""
 
 from __future__ import annotations
 
@@ -23,3 +24,18 @@ def data_dir() -> Path:
             f"HYSTDISC_DATA={value} is not a folder; measured-data tests need ../shared/data"
         )
     return path
+
+
+@pytest.fixture(scope="module")
+def work(tmp_path_factory) -> Path:
+    """A scratch folder shared by a module's tests (the fuzz tests write their inputs here)."""
+    return tmp_path_factory.mktemp("fuzz")
+
+
+@pytest.fixture(scope="module")
+def fuzz_counts(request):
+    """After a fuzz module, the inputs it tried per reader (``tests/fuzz``)."""
+    from .fuzz import report_counts
+
+    yield
+    report_counts(request)

@@ -11,7 +11,7 @@ Building the parsers is cheap: this package and the command modules import only
 :mod:`hystdisc.registry` (for the names of families and experiment types) and the
 standard library at module level; each command imports the numerical layers inside its
 ``run(args)``, so ``hystdisc --help`` imports no numpy, numba, scipy, scikit-learn,
-pysindy or matplotlib (``tests/test_cli.py`` checks it).
+pysindy or matplotlib (``tests/cli/test_cli.py`` checks it).
 
 The console script (:func:`console`) leaves without tearing the interpreter down: by then
 every output is written and closed, and finalizing the modules of numba, SciPy and

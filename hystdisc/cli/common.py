@@ -53,7 +53,7 @@ def add_data_options(p: argparse.ArgumentParser) -> None:
     )
 
 
-def _pairs(items: list[str], flag: str) -> dict[str, str]:
+def name_value_pairs(items: list[str], flag: str) -> dict[str, str]:
     out = {}
     for item in items:
         for part in item.split(","):
@@ -70,14 +70,14 @@ def load_data(args: argparse.Namespace, files: list[str]) -> Dataset:
     """Load the data files named on the command line with the data options."""
     from hystdisc.data import load
 
-    columns: dict = _pairs(args.column, "--column")
+    columns: dict = name_value_pairs(args.column, "--column")
     columns = {k: int(v) if v.isdigit() else v for k, v in columns.items()}
     return load(
         files if len(files) > 1 else files[0],
         experiment=args.experiment,
         rig=args.rig,
         columns=columns or None,
-        units=_pairs(args.units, "--units") or None,
+        units=name_value_pairs(args.units, "--units") or None,
     )
 
 

@@ -17,11 +17,11 @@ from pathlib import Path
 
 from hystdisc import registry
 from hystdisc.cli.common import (
-    _pairs,
     add_discovery_options,
     discover,
     discovery_options,
     load_data,
+    name_value_pairs,
     progress_printer,
 )
 from hystdisc.errors import HystdiscError
@@ -138,12 +138,12 @@ def run_each(args: argparse.Namespace) -> int:
                 raise HystdiscError(
                     f"{path}: exists; fix: pass --force to overwrite or choose another --out"
                 )
-    columns = _pairs(args.column, "--column")
+    columns = name_value_pairs(args.column, "--column")
     load_options = {
         "experiment": args.experiment,
         "rig": args.rig,
         "columns": {k: int(v) if v.isdigit() else v for k, v in columns.items()} or None,
-        "units": _pairs(args.units, "--units") or None,
+        "units": name_value_pairs(args.units, "--units") or None,
     }
     options = discovery_options(args)
     items = discover_many(

@@ -122,14 +122,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 # ----------------------------------------------------------------------------- parsing
 
 
-def _float(text: str, what: str) -> float:
+def parse_float(text: str, what: str) -> float:
     try:
         return float(text)
     except (TypeError, ValueError):
         raise HystdiscError(f"{what} {text!r} is not a number; fix: give a number") from None
 
 
-def _int(text: str, what: str) -> int:
+def parse_int(text: str, what: str) -> int:
     try:
         return int(text)
     except (TypeError, ValueError):
@@ -153,7 +153,7 @@ def parse_assignments(items: list[str], what: str) -> dict[str, float]:
             key, val = (s.strip() for s in part.split("="))
             if not key:
                 raise HystdiscError(f"{what} {part!r} has no name; fix: write e.g. --set k_s=158")
-            out[key] = _float(val, f"{what} {key} =")
+            out[key] = parse_float(val, f"{what} {key} =")
     return out
 
 
@@ -193,9 +193,9 @@ def parse_prefilter(text: str) -> dict[str, Any]:
                 "fix: write e.g. --prefilter period_fraction=0.1"
             )
         if key == "window":
-            out[key] = _int(val, "--prefilter window")
+            out[key] = parse_int(val, "--prefilter window")
         elif key == "period_fraction":
-            out[key] = _float(val, "--prefilter period_fraction")
+            out[key] = parse_float(val, "--prefilter period_fraction")
         else:
             out[key] = [c.strip() for c in val.split("+") if c.strip()]
     return out
@@ -219,7 +219,7 @@ def settings_from_args(args: argparse.Namespace) -> dict[str, Any]:
         parts = [s.strip() for s in args.currents.split(",") if s.strip()]
         if not parts:
             raise HystdiscError("--currents is empty; fix: give e.g. --currents 0,0.5,1")
-        sc["currents"] = [_float(s, "current") for s in parts]
+        sc["currents"] = [parse_float(s, "current") for s in parts]
     if args.experiment is not None:
         sc["experiment"] = args.experiment
     for flag, key in (
@@ -232,18 +232,18 @@ def settings_from_args(args: argparse.Namespace) -> dict[str, Any]:
     ):
         val = getattr(args, flag)
         if val is not None:
-            sc[key] = _float(val, f"--{flag.replace('_', '-')}")
+            sc[key] = parse_float(val, f"--{flag.replace('_', '-')}")
     if args.seed is not None:
-        sc["seed"] = _int(args.seed, "--seed")
+        sc["seed"] = parse_int(args.seed, "--seed")
     if args.encoder_counts is not None:
-        sc["encoder_counts"] = _int(args.encoder_counts, "--encoder-counts")
+        sc["encoder_counts"] = parse_int(args.encoder_counts, "--encoder-counts")
     if args.spikes is not None:
         count, sep, size = args.spikes.partition(":")
         if not sep:
             raise HystdiscError(
                 f"--spikes {args.spikes!r} is not N:SIZE; fix: write e.g. --spikes 6:0.05"
             )
-        sc["spikes"] = (_int(count, "--spikes count"), _float(size, "--spikes size"))
+        sc["spikes"] = (parse_int(count, "--spikes count"), parse_float(size, "--spikes size"))
     if args.prefilter is not None:
         sc["prefilter"] = parse_prefilter(args.prefilter)
     if args.drive:

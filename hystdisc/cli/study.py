@@ -13,11 +13,11 @@ from pathlib import Path
 
 from hystdisc import registry
 from hystdisc.cli.simulate import (
-    _float,
-    _int,
     add_model_options,
     parse_assignments,
     parse_effect,
+    parse_float,
+    parse_int,
 )
 from hystdisc.errors import HystdiscError
 
@@ -70,19 +70,19 @@ def run(args: argparse.Namespace) -> int:
         raise HystdiscError(
             f"--vary {args.vary!r} is not NAME=V1,V2,...; fix: write e.g. --vary rho=2,15"
         )
-    values = [_float(v, f"--vary {name} value") for v in vals.split(",") if v.strip()]
+    values = [parse_float(v, f"--vary {name} value") for v in vals.split(",") if v.strip()]
     effects = dict(parse_effect(e) for e in args.effect)
     study = parameter_study(
         args.model,
         name,
         values,
-        current=_float(args.current, "--current"),
+        current=parse_float(args.current, "--current"),
         base=parse_assignments(args.set, "--set"),
         effects=effects,
-        amplitude=_float(args.amplitude, "--amplitude"),
-        frequency=_float(args.frequency, "--frequency"),
-        cycles=_int(args.cycles, "--cycles"),
-        fs=_float(args.fs, "--fs"),
+        amplitude=parse_float(args.amplitude, "--amplitude"),
+        frequency=parse_float(args.frequency, "--frequency"),
+        cycles=parse_int(args.cycles, "--cycles"),
+        fs=parse_float(args.fs, "--fs"),
     )
     fig = Figure(figsize=(10, 4), layout="constrained")
     plot_study(study, ax=list(fig.subplots(1, 2)))

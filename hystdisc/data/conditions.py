@@ -42,7 +42,7 @@ def _fmt(x: float) -> str:
     return f"{x:.3g}"
 
 
-def _driven_signature(t: np.ndarray, theta: np.ndarray) -> tuple[float, float]:
+def driven_signature(t: np.ndarray, theta: np.ndarray) -> tuple[float, float]:
     """Amplitude and frequency of an imposed oscillation (frequency from the spacing of
     its interpolated zero crossings, so a record of a few cycles is measured as well)."""
     t = np.asarray(t, dtype=float)
@@ -56,7 +56,7 @@ def _driven_signature(t: np.ndarray, theta: np.ndarray) -> tuple[float, float]:
     return amplitude, frequency
 
 
-def _close(a: float, b: float, tol: float) -> bool:
+def relatively_close(a: float, b: float, tol: float) -> bool:
     return abs(a - b) <= tol * max(abs(a), abs(b), 1e-300)
 
 
@@ -90,11 +90,12 @@ def detect_conditions(
     reps: list[tuple[str, tuple]] = []  # (label, signature) of each condition found
     for k in range(len(t)):
         if exp.motion_imposed:
-            sig: tuple = _driven_signature(t[k], theta[k])
+            sig: tuple = driven_signature(t[k], theta[k])
             match = [
                 lab
                 for lab, s in reps
-                if _close(s[0], sig[0], AMPLITUDE_TOL) and _close(s[1], sig[1], FREQUENCY_TOL)
+                if relatively_close(s[0], sig[0], AMPLITUDE_TOL)
+                and relatively_close(s[1], sig[1], FREQUENCY_TOL)
             ]
             label = f"{_fmt(sig[0])} @ {_fmt(sig[1])} Hz"
         elif exp.has_input and inputs is not None and inputs[k] is not None:
@@ -110,7 +111,7 @@ def detect_conditions(
             label = f"input record {len(reps) + 1}"
         else:
             sig = (float(theta[k][0]),)
-            match = [lab for lab, s in reps if _close(s[0], sig[0], AMPLITUDE_TOL)]
+            match = [lab for lab, s in reps if relatively_close(s[0], sig[0], AMPLITUDE_TOL)]
             label = f"start at {_fmt(sig[0])}"
         if match:
             labels.append(match[0])

@@ -75,9 +75,9 @@ def _probe_loadmat(path: str) -> str | None:
 
     scipy's compiled MAT reader can kill the interpreter (segmentation fault) on some
     damaged files, e.g. one flipped class or flag byte of a variable (found by fuzzing,
-    ``tests/fuzz_corpus/mat_*``). A crash of the child becomes a one-line error instead.
-    Python errors are left to the real load. Without ``os.fork`` (Windows) nothing is
-    probed.
+    ``tests/end_to_end/fuzz_corpus/mat_*``). A crash of the child becomes a one-line error
+    instead. Python errors are left to the real load. Without ``os.fork`` (Windows) nothing
+    is probed.
     """
     if not hasattr(os, "fork") or not _mat_needs_probe(path):
         return None

@@ -151,7 +151,7 @@ def check_one_current(dataset: Dataset, source: str | None = None) -> None:
     ...
     hystdisc.errors.HystdiscError: lost.csv: no 'current' column, so every run is taken at 0 A, but runs 0 and 2 start alike and then differ by ...
     """
-    from hystdisc.data.conditions import _close, _driven_signature
+    from hystdisc.data.conditions import driven_signature, relatively_close
 
     exp = registry.get_experiment(dataset.experiment)
     runs = dataset.runs
@@ -161,16 +161,16 @@ def check_one_current(dataset: Dataset, source: str | None = None) -> None:
         for b in range(a + 1, len(runs)):
             ra, rb = runs[a], runs[b]
             n = min(ra.n, rb.n)
-            if n < _MOTION_MIN or not _close(ra.t[1] - ra.t[0], rb.t[1] - rb.t[0], 1e-6):
+            if n < _MOTION_MIN or not relatively_close(ra.t[1] - ra.t[0], rb.t[1] - rb.t[0], 1e-6):
                 continue
             if exp.motion_imposed:
-                sa, sb = _driven_signature(ra.t, ra.theta), _driven_signature(rb.t, rb.theta)
-                alike = all(_close(p, q, SAME_START) for p, q in zip(sa, sb, strict=True))
+                sa, sb = driven_signature(ra.t, ra.theta), driven_signature(rb.t, rb.theta)
+                alike = all(relatively_close(p, q, SAME_START) for p, q in zip(sa, sb, strict=True))
             elif exp.has_input:
                 ua, ub = np.asarray(ra.input[:n]), np.asarray(rb.input[:n])
                 alike = bool(np.sqrt(np.mean((ua - ub) ** 2)) <= SAME_START * np.std(ua))
             else:
-                alike = _close(float(ra.theta[0]), float(rb.theta[0]), SAME_START)
+                alike = relatively_close(float(ra.theta[0]), float(rb.theta[0]), SAME_START)
             if not alike:
                 continue
             d = float(np.sqrt(np.mean((y[a][:n] - y[b][:n]) ** 2)))

@@ -41,6 +41,7 @@ from typing import Any
 import hystdisc.results.text as text
 from hystdisc.errors import HystdiscError
 from hystdisc.models import TermModel
+from hystdisc.registry import experiment_names
 from hystdisc.results.record import Record, SchemaError, list_of, record_of, round_json, table_of
 from hystdisc.results.records import (
     DiagnosisRound,
@@ -402,6 +403,11 @@ class Results(Record):
             raise HystdiscError(
                 f"{p}: not a hystdisc results.json (no 'families'/'model'/'experiment' keys); "
                 "fix: give the file written by hystdisc discover --json"
+            )
+        if data["experiment"] not in (None, *experiment_names()):
+            raise HystdiscError(
+                f"{p}: not a hystdisc results.json (experiment {str(data['experiment'])[:40]!r} "
+                f"is not one of {', '.join(experiment_names())}); {_FIX_RERUN}"
             )
         try:
             return cls.from_dict(data)

@@ -20,12 +20,12 @@ from hystdisc.simulation.kernels import (
     MAX_SUBSTEPS,
     MIN_SUBSTEPS,
     STEP_RATIO,
-    _driven_batch,
-    _mech_batch,
-    _torque_series,
+    driven_batch_kernel,
+    mech_batch_kernel,
+    torque_series,
 )
 from hystdisc.simulation.parallel import chunk_bounds, map_entries
-from hystdisc.simulation.sensitivity import _driven_sens_batch, _mech_sens_batch
+from hystdisc.simulation.sensitivity import driven_sens_batch_kernel, mech_sens_batch_kernel
 
 
 def _per_run(max_sub, nruns: int) -> np.ndarray:
@@ -144,7 +144,7 @@ def mech_batch(
     J, theta0, theta_dot0, z0 = (np.asarray(a, dtype=float) for a in (J, theta0, theta_dot0, z0))
     th, w, z = np.empty_like(t), np.empty_like(t), np.empty_like(t)
     status = _call_kernel(
-        _mech_batch,
+        mech_batch_kernel,
         (coef, b, n),
         (J, t, u, du, offsets, theta0, theta_dot0, z0, HOLDS[hold]),
         (th, w, z),
@@ -176,7 +176,7 @@ def driven_batch(
     (``max_sub``: one sub-step cap, or one per run; ``work`` as in :func:`mech_batch`)."""
     tq, z = np.empty_like(t), np.empty_like(t)
     status = _call_kernel(
-        _driven_batch,
+        driven_batch_kernel,
         (coef, b, n),
         (t, theta, theta_dot, offsets, np.asarray(z0, dtype=float)),
         (tq, z),
@@ -233,7 +233,7 @@ def mech_sens_batch(
     th, w, z = np.empty_like(t), np.empty_like(t), np.empty_like(t)
     sens = np.empty((t.size, act.size))
     status = _call_kernel(
-        _mech_sens_batch,
+        mech_sens_batch_kernel,
         (coef, b, n),
         (J, t, u, du, offsets, theta0, theta_dot0, z0, HOLDS[hold]),
         (act, th, w, z, sens),
@@ -269,7 +269,7 @@ def driven_sens_batch(
     tq, z = np.empty_like(t), np.empty_like(t)
     sens = np.empty((t.size, act.size))
     status = _call_kernel(
-        _driven_sens_batch,
+        driven_sens_batch_kernel,
         (coef, b, n),
         (t, theta, theta_dot, offsets, np.asarray(z0, dtype=float)),
         (act, tq, z, sens),
@@ -357,7 +357,7 @@ def driven_shared(
             tq[offsets[e] : offsets[e + 1]] = tq_l[sub_off[j] : sub_off[j + 1]]
     rest = np.array([e for e in range(ne) if owner[e] != e], dtype=np.int64)
     eps = options.get("eps", SIGN_EPS)
-    _torque_series(
+    torque_series(
         np.ascontiguousarray(coef, dtype=float), rest, offsets, theta, theta_dot, z, eps, tq
     )
     return tq, z, status

@@ -30,7 +30,7 @@ MAX_SUBSTEPS = 500
 
 
 @numba.njit(cache=True)
-def _n_sub(c, b, n, J, th, w, z, h, eps, mech, u, ratio, min_sub, max_sub):
+def n_sub(c, b, n, J, th, w, z, h, eps, mech, u, ratio, min_sub, max_sub):
     dgdz, dgdw = rate_stiffness(b, n, w, z)
     lam = dgdz  # already carries the |theta_dot| factor
     if mech:
@@ -65,7 +65,7 @@ def _n_sub(c, b, n, J, th, w, z, h, eps, mech, u, ratio, min_sub, max_sub):
 
 
 @numba.njit(cache=True, inline="always")
-def _input(ua, ub, ma, mb, f, hold):
+def interpolate_input(ua, ub, ma, mb, f, hold):
     """Input at fraction ``f`` of a sample interval: linear (0), held (1) or cubic Hermite (2)
     with end slopes ``ma``, ``mb`` already multiplied by the interval length."""
     if hold == 2:
@@ -81,13 +81,13 @@ def _input(ua, ub, ma, mb, f, hold):
 
 
 @numba.njit(cache=True, inline="always")
-def _mech_rate(c, b, n, J, u, th, w, z, eps):
+def mech_rate(c, b, n, J, u, th, w, z, eps):
     """Rates ``(theta', theta'', z')`` of a release/forced rig: ``J theta'' = u - T``."""
     return w, (u - term_torque(c, th, w, z, eps)) / J, term_rate(b, n, w, z)
 
 
 @numba.njit(cache=True, nogil=True)
-def _mech_batch(
+def mech_batch_kernel(
     coef,
     bb,
     nn,
@@ -126,21 +126,21 @@ def _mech_batch(
             ub = u[k + 1] if hold != 1 else u[k]
             ma = h * du[k] if hold == 2 else 0.0
             mb = h * du[k + 1] if hold == 2 else 0.0
-            m = _n_sub(c, b, n, J, th, w, z, h, eps, True, ua, ratio, min_sub, max_sub[r])
+            m = n_sub(c, b, n, J, th, w, z, h, eps, True, ua, ratio, min_sub, max_sub[r])
             work[r] += 2 * m + 1
             hs = h / m
             for s in range(m):
-                u1 = _input(ua, ub, ma, mb, s / m, hold)
-                u2 = _input(ua, ub, ma, mb, (s + 0.5) / m, hold)
-                u3 = _input(ua, ub, ma, mb, (s + 1.0) / m, hold)
-                k1t, k1w, k1z = _mech_rate(c, b, n, J, u1, th, w, z, eps)
-                k2t, k2w, k2z = _mech_rate(
+                u1 = interpolate_input(ua, ub, ma, mb, s / m, hold)
+                u2 = interpolate_input(ua, ub, ma, mb, (s + 0.5) / m, hold)
+                u3 = interpolate_input(ua, ub, ma, mb, (s + 1.0) / m, hold)
+                k1t, k1w, k1z = mech_rate(c, b, n, J, u1, th, w, z, eps)
+                k2t, k2w, k2z = mech_rate(
                     c, b, n, J, u2, th + 0.5 * hs * k1t, w + 0.5 * hs * k1w, z + 0.5 * hs * k1z, eps
                 )
-                k3t, k3w, k3z = _mech_rate(
+                k3t, k3w, k3z = mech_rate(
                     c, b, n, J, u2, th + 0.5 * hs * k2t, w + 0.5 * hs * k2w, z + 0.5 * hs * k2z, eps
                 )
-                k4t, k4w, k4z = _mech_rate(
+                k4t, k4w, k4z = mech_rate(
                     c, b, n, J, u3, th + hs * k3t, w + hs * k3w, z + hs * k3z, eps
                 )
                 th += hs / 6.0 * (k1t + 2.0 * k2t + 2.0 * k3t + k4t)
@@ -172,7 +172,7 @@ def _z_rk4(b, n, z, wa, wb, fa, fc, h):
 
 
 @numba.njit(cache=True)
-def _z_segment(b, n, z, wa, wb, f0, f1, h, m):
+def z_segment(b, n, z, wa, wb, f0, f1, h, m):
     """RK4 for z over the fraction [f0, f1] of a sample interval, velocity linear in time.
 
     A sub-step in which z changes sign is redone in two parts split at the (secant) zero
@@ -192,7 +192,7 @@ def _z_segment(b, n, z, wa, wb, f0, f1, h, m):
 
 
 @numba.njit(cache=True, nogil=True)
-def _driven_batch(
+def driven_batch_kernel(
     coef,
     bb,
     nn,
@@ -224,15 +224,15 @@ def _driven_batch(
             wa = w_in[k]
             wb = w_in[k + 1]
             wmax = max(abs(wa), abs(wb))
-            m = _n_sub(c, b, n, 1.0, 0.0, wmax, z, h, eps, False, 0.0, ratio, min_sub, max_sub[r])
+            m = n_sub(c, b, n, 1.0, 0.0, wmax, z, h, eps, False, 0.0, ratio, min_sub, max_sub[r])
             work[r] += 2 * m + 1
             if wa * wb < 0.0:
                 # |theta_dot| has a kink where the velocity reverses: split the interval there
                 f = wa / (wa - wb)
-                z = _z_segment(b, n, z, wa, wb, 0.0, f, h, m)
-                z = _z_segment(b, n, z, wa, wb, f, 1.0, h, m)
+                z = z_segment(b, n, z, wa, wb, 0.0, f, h, m)
+                z = z_segment(b, n, z, wa, wb, f, 1.0, h, m)
             else:
-                z = _z_segment(b, n, z, wa, wb, 0.0, 1.0, h, m)
+                z = z_segment(b, n, z, wa, wb, 0.0, 1.0, h, m)
             z_out[k + 1] = z
             tq_out[k + 1] = term_torque(c, th_in[k + 1], w_in[k + 1], z, eps)
             if not abs(z) < 1e12:
@@ -243,9 +243,9 @@ def _driven_batch(
 
 
 @numba.njit(cache=True, nogil=True)
-def _torque_series(coef, rows, offsets, th_in, w_in, z, eps, out):
+def torque_series(coef, rows, offsets, th_in, w_in, z, eps, out):
     """Torque of the entries ``rows`` (samples ``offsets[e]:offsets[e+1]``) for a given ``z``
-    (the same arithmetic as :func:`_driven_batch`)."""
+    (the same arithmetic as :func:`driven_batch_kernel`)."""
     for j in range(rows.shape[0]):
         e = rows[j]
         c = coef[e]

@@ -48,15 +48,16 @@ MAX_STEPS_PER_SAMPLE = 1_000
 #: steps so far stay within the budget times the intervals passed.
 BURST = 50
 
-# Dormand–Prince 5(4): nodes, stages, 5th-order weights and the error weights (5th - 4th)
-_C = (0.2, 0.3, 0.8, 8.0 / 9.0, 1.0)
-_A2 = (0.2,)
-_A3 = (3.0 / 40.0, 9.0 / 40.0)
-_A4 = (44.0 / 45.0, -56.0 / 15.0, 32.0 / 9.0)
-_A5 = (19372.0 / 6561.0, -25360.0 / 2187.0, 64448.0 / 6561.0, -212.0 / 729.0)
-_A6 = (9017.0 / 3168.0, -355.0 / 33.0, 46732.0 / 5247.0, 49.0 / 176.0, -5103.0 / 18656.0)
-_B = (35.0 / 384.0, 0.0, 500.0 / 1113.0, 125.0 / 192.0, -2187.0 / 6784.0, 11.0 / 84.0)
-_E = (
+# Dormand–Prince 5(4): nodes, stages, 5th-order weights and the error weights (5th - 4th);
+# public with the step helpers below: the sensitivities (sensitivity_ode.py) take the same steps
+C = (0.2, 0.3, 0.8, 8.0 / 9.0, 1.0)
+A2 = (0.2,)
+A3 = (3.0 / 40.0, 9.0 / 40.0)
+A4 = (44.0 / 45.0, -56.0 / 15.0, 32.0 / 9.0)
+A5 = (19372.0 / 6561.0, -25360.0 / 2187.0, 64448.0 / 6561.0, -212.0 / 729.0)
+A6 = (9017.0 / 3168.0, -355.0 / 33.0, 46732.0 / 5247.0, 49.0 / 176.0, -5103.0 / 18656.0)
+B = (35.0 / 384.0, 0.0, 500.0 / 1113.0, 125.0 / 192.0, -2187.0 / 6784.0, 11.0 / 84.0)
+E = (
     71.0 / 57600.0,
     0.0,
     -71.0 / 16695.0,
@@ -68,20 +69,20 @@ _E = (
 
 
 @numba.njit(cache=True, nogil=True)
-def _input_at(U, k, f, out):
+def input_at(U, k, f, out):
     for j in range(out.shape[0]):
         out[j] = U[k, j] + (U[k + 1, j] - U[k, j]) * f
 
 
 @numba.njit(cache=True, inline="always")
-def _over_budget(steps, total, k, max_steps):
+def over_budget(steps, total, k, max_steps):
     """The step budget is spent: ``steps`` in interval ``k`` beyond :data:`BURST` times
     ``max_steps``, or ``total`` steps beyond ``max_steps`` per interval so far."""
     return steps > BURST * max_steps or total > max_steps * (k + 1)
 
 
 @numba.njit(cache=True, inline="always")
-def _next_step(err, h, hh, cut):
+def next_step(err, h, hh, cut):
     """The step size to try after a step of size ``hh`` (``cut``: shortened from ``h`` to
     end on a sample) whose scaled error is ``err`` (accepted when ``err <= 1``): the one
     step-size rule of every loop here and of the sensitivities' (they must take the same
@@ -91,52 +92,52 @@ def _next_step(err, h, hh, cut):
     return max(h, hh * fac) if (err <= 1.0 and cut) else hh * fac
 
 
-def _stages(x, U, k, tt, span, hh, p, ks, xt, u, x5):
+def stages(x, U, k, tt, span, hh, p, ks, xt, u, x5):
     """The first six stages of a Dormand–Prince step of size ``hh`` from ``x`` at ``t[k] +
     tt`` into ``ks[:6]``, and the 5th-order solution into ``x5``."""
     n = x.shape[0]
-    _input_at(U, k, tt / span, u)
+    input_at(U, k, tt / span, u)
     rate(x, u, p, ks[0])  # noqa: F821
     for s in range(1, 6):
         for i in range(n):
             acc = 0.0
             if s == 1:
-                acc = _A2[0] * ks[0, i]
+                acc = A2[0] * ks[0, i]
             elif s == 2:
-                acc = _A3[0] * ks[0, i] + _A3[1] * ks[1, i]
+                acc = A3[0] * ks[0, i] + A3[1] * ks[1, i]
             elif s == 3:
-                acc = _A4[0] * ks[0, i] + _A4[1] * ks[1, i] + _A4[2] * ks[2, i]
+                acc = A4[0] * ks[0, i] + A4[1] * ks[1, i] + A4[2] * ks[2, i]
             elif s == 4:
-                acc = _A5[0] * ks[0, i] + _A5[1] * ks[1, i] + _A5[2] * ks[2, i] + _A5[3] * ks[3, i]
+                acc = A5[0] * ks[0, i] + A5[1] * ks[1, i] + A5[2] * ks[2, i] + A5[3] * ks[3, i]
             else:
                 acc = (
-                    _A6[0] * ks[0, i]
-                    + _A6[1] * ks[1, i]
-                    + _A6[2] * ks[2, i]
-                    + _A6[3] * ks[3, i]
-                    + _A6[4] * ks[4, i]
+                    A6[0] * ks[0, i]
+                    + A6[1] * ks[1, i]
+                    + A6[2] * ks[2, i]
+                    + A6[3] * ks[3, i]
+                    + A6[4] * ks[4, i]
                 )
             xt[i] = x[i] + hh * acc
-        _input_at(U, k, (tt + _C[s - 1] * hh) / span, u)
+        input_at(U, k, (tt + C[s - 1] * hh) / span, u)
         rate(xt, u, p, ks[s])  # noqa: F821
     for i in range(n):
         acc = 0.0
         for s in range(6):
-            acc += _B[s] * ks[s, i]
+            acc += B[s] * ks[s, i]
         x5[i] = x[i] + hh * acc
 
 
-def _error(x, x5, U, k, tt, span, hh, p, ks, u, rtol, atol):
+def step_error(x, x5, U, k, tt, span, hh, p, ks, u, rtol, atol):
     """Scaled RMS error estimate of the step ``x -> x5`` whose first six stages are in
     ``ks`` (the seventh goes into ``ks[6]``)."""
     n = x.shape[0]
-    _input_at(U, k, (tt + hh) / span, u)
+    input_at(U, k, (tt + hh) / span, u)
     rate(x5, u, p, ks[6])  # noqa: F821
     err = 0.0
     for i in range(n):
         e = 0.0
         for s in range(7):
-            e += _E[s] * ks[s, i]
+            e += E[s] * ks[s, i]
         sc = atol + rtol * max(abs(x[i]), abs(x5[i]))
         err += (hh * e / sc) ** 2
     return np.sqrt(err / n) if n > 0 else 0.0  # a model without states (algebraic)
@@ -151,7 +152,7 @@ def _integrate(x0, t, U, p, rtol, atol, X, Y, max_steps):
     x5 = np.empty(n)
     u = np.empty(U.shape[1])
     X[0] = x
-    _input_at(U, 0, 0.0, u)
+    input_at(U, 0, 0.0, u)
     Y[0] = observe(x, u, p)  # noqa: F821
     h = (t[1] - t[0]) if t.shape[0] > 1 else 0.0
     total = 0
@@ -162,18 +163,18 @@ def _integrate(x0, t, U, p, rtol, atol, X, Y, max_steps):
         while tt < span:
             hh = min(h, span - tt)
             cut = hh < h
-            _stages(x, U, k, tt, span, hh, p, ks, xt, u, x5)
-            err = _error(x, x5, U, k, tt, span, hh, p, ks, u, rtol, atol)
+            stages(x, U, k, tt, span, hh, p, ks, xt, u, x5)
+            err = step_error(x, x5, U, k, tt, span, hh, p, ks, u, rtol, atol)
             steps += 1
             total += 1
-            if not np.isfinite(err) or _over_budget(steps, total, k, max_steps):
+            if not np.isfinite(err) or over_budget(steps, total, k, max_steps):
                 return 1
             if err <= 1.0:
                 tt += hh
                 x[:] = x5
-            h = _next_step(err, h, hh, cut)
+            h = next_step(err, h, hh, cut)
         X[k + 1] = x
-        _input_at(U, k, 1.0, u)
+        input_at(U, k, 1.0, u)
         Y[k + 1] = observe(x, u, p)  # noqa: F821
     return 0
 
@@ -195,7 +196,7 @@ def _integrate_lockstep(X0, t, U, P, rtol, atol, Y, max_steps):
     xt = np.empty(n)
     x5 = np.empty(n)
     u = np.empty(U.shape[1])
-    _input_at(U, 0, 0.0, u)
+    input_at(U, 0, 0.0, u)
     for c in range(m):
         Y[c, 0] = observe(x[c], u, P[c])  # noqa: F821
     h = (t[1] - t[0]) if t.shape[0] > 1 else 0.0
@@ -207,20 +208,20 @@ def _integrate_lockstep(X0, t, U, P, rtol, atol, Y, max_steps):
         while tt < span:
             hh = min(h, span - tt)
             cut = hh < h
-            _stages(x[0], U, k, tt, span, hh, P[0], ks, xt, u, x5)
-            err = _error(x[0], x5, U, k, tt, span, hh, P[0], ks, u, rtol, atol)
+            stages(x[0], U, k, tt, span, hh, P[0], ks, xt, u, x5)
+            err = step_error(x[0], x5, U, k, tt, span, hh, P[0], ks, u, rtol, atol)
             steps += 1
             total += 1
-            if not np.isfinite(err) or _over_budget(steps, total, k, max_steps):
+            if not np.isfinite(err) or over_budget(steps, total, k, max_steps):
                 return 1
             if err <= 1.0:
                 x[0] = x5
                 for c in range(1, m):  # the copies take the accepted step as it is
-                    _stages(x[c], U, k, tt, span, hh, P[c], kc, xt, u, x5)
+                    stages(x[c], U, k, tt, span, hh, P[c], kc, xt, u, x5)
                     x[c] = x5
                 tt += hh
-            h = _next_step(err, h, hh, cut)
-        _input_at(U, k, 1.0, u)
+            h = next_step(err, h, hh, cut)
+        input_at(U, k, 1.0, u)
         for c in range(m):
             Y[c, k + 1] = observe(x[c], u, P[c])  # noqa: F821
     return 0
@@ -253,8 +254,8 @@ def _kernel(template, model: StateSpaceModel):
         template,
         rate=rate,
         observe=model.observe,
-        _stages=specialize(_stages, rate=rate),
-        _error=specialize(_error, rate=rate),
+        stages=specialize(stages, rate=rate),
+        step_error=specialize(step_error, rate=rate),
     )
 
 

@@ -33,7 +33,7 @@ from hystdisc.models.compiled import (
     term_torque,
     torque_grad,
 )
-from hystdisc.simulation.kernels import _input, _mech_rate, _n_sub, _z_segment
+from hystdisc.simulation.kernels import interpolate_input, mech_rate, n_sub, z_segment
 
 #: First direction of the hysteresis coefficients, then the exponent, the inertia and the
 #: initial states (see the module docstring).
@@ -92,7 +92,7 @@ def _stage_state(sc, frac, dst):
 
 
 @numba.njit(cache=True, nogil=True)
-def _mech_sens_batch(
+def mech_sens_batch_kernel(
     coef,
     bb,
     nn,
@@ -117,7 +117,7 @@ def _mech_sens_batch(
     status,
     work,
 ):
-    """:func:`~hystdisc.simulation.kernels._mech_batch` with the derivative of ``theta``
+    """:func:`~hystdisc.simulation.kernels.mech_batch_kernel` with the derivative of ``theta``
     along the directions ``act``: ``sens[k, j]`` at sample ``k``, direction ``act[j]``."""
     na = act.shape[0]
     need = _needs(act)
@@ -147,21 +147,21 @@ def _mech_sens_batch(
             ub = u[k + 1] if hold != 1 else u[k]
             ma = h * du[k] if hold == 2 else 0.0
             mb = h * du[k + 1] if hold == 2 else 0.0
-            m = _n_sub(c, b, n, J, th, w, z, h, eps, True, ua, ratio, min_sub, max_sub[r])
+            m = n_sub(c, b, n, J, th, w, z, h, eps, True, ua, ratio, min_sub, max_sub[r])
             work[r] += 2 * m + 1
             hs = h / m
             for s in range(m):
-                u1 = _input(ua, ub, ma, mb, s / m, hold)
-                u2 = _input(ua, ub, ma, mb, (s + 0.5) / m, hold)
-                u3 = _input(ua, ub, ma, mb, (s + 1.0) / m, hold)
+                u1 = interpolate_input(ua, ub, ma, mb, s / m, hold)
+                u2 = interpolate_input(ua, ub, ma, mb, (s + 0.5) / m, hold)
+                u3 = interpolate_input(ua, ub, ma, mb, (s + 1.0) / m, hold)
                 # the plain kernel's stages, operation for operation
-                k1t, k1w, k1z = _mech_rate(c, b, n, J, u1, th, w, z, eps)
+                k1t, k1w, k1z = mech_rate(c, b, n, J, u1, th, w, z, eps)
                 th2, w2, z2 = th + 0.5 * hs * k1t, w + 0.5 * hs * k1w, z + 0.5 * hs * k1z
-                k2t, k2w, k2z = _mech_rate(c, b, n, J, u2, th2, w2, z2, eps)
+                k2t, k2w, k2z = mech_rate(c, b, n, J, u2, th2, w2, z2, eps)
                 th3, w3, z3 = th + 0.5 * hs * k2t, w + 0.5 * hs * k2w, z + 0.5 * hs * k2z
-                k3t, k3w, k3z = _mech_rate(c, b, n, J, u2, th3, w3, z3, eps)
+                k3t, k3w, k3z = mech_rate(c, b, n, J, u2, th3, w3, z3, eps)
                 th4, w4, z4 = th + hs * k3t, w + hs * k3w, z + hs * k3z
-                k4t, k4w, k4z = _mech_rate(c, b, n, J, u3, th4, w4, z4, eps)
+                k4t, k4w, k4z = mech_rate(c, b, n, J, u3, th4, w4, z4, eps)
                 # and their derivatives
                 _stage_sens(c, b, n, J, u1, th, w, z, eps, k1w, act, need, needr, gT, gR, sc, 0, 6)
                 _stage_state(sc, 0.5 * hs, 6)
@@ -257,7 +257,7 @@ def _z_rk4_sens(b, n, z, wa, wb, fa, fc, h, cols, act, sc, src, moving, ra, rc, 
 
 @numba.njit(cache=True)
 def _z_segment_sens(b, n, z, wa, wb, f0, f1, h, m, cols, act, sc, need, g):
-    """:func:`~hystdisc.simulation.kernels._z_segment` with the derivatives of z along
+    """:func:`~hystdisc.simulation.kernels.z_segment` with the derivatives of z along
     ``act[cols]``, row 4 of the scratch ``sc`` (updated in place; rows 0-2 are work space,
     row 3 zeros); ``g``: four scratch arrays of 6.
 
@@ -292,7 +292,7 @@ def _torque_sens(c, th, w, z, eps, act, need, gT, sc, sens, k):
 
 
 @numba.njit(cache=True, nogil=True)
-def _driven_sens_batch(
+def driven_sens_batch_kernel(
     coef,
     bb,
     nn,
@@ -312,7 +312,7 @@ def _driven_sens_batch(
     status,
     work,
 ):
-    """:func:`~hystdisc.simulation.kernels._driven_batch` with the derivative of the torque
+    """:func:`~hystdisc.simulation.kernels.driven_batch_kernel` with the derivative of the torque
     along the directions ``act``: ``sens[k, j]`` at sample ``k``, direction ``act[j]``.
 
     Only the rate's directions (``b``, ``n``, the initial z) move z; the torque's
@@ -350,15 +350,15 @@ def _driven_sens_batch(
             wa = w_in[k]
             wb = w_in[k + 1]
             wmax = max(abs(wa), abs(wb))
-            m = _n_sub(c, b, n, 1.0, 0.0, wmax, z, h, eps, False, 0.0, ratio, min_sub, max_sub[r])
+            m = n_sub(c, b, n, 1.0, 0.0, wmax, z, h, eps, False, 0.0, ratio, min_sub, max_sub[r])
             work[r] += 2 * m + 1
             if cols.shape[0] == 0:  # nothing moves z: the plain integration
                 if wa * wb < 0.0:
                     f = wa / (wa - wb)
-                    z = _z_segment(b, n, z, wa, wb, 0.0, f, h, m)
-                    z = _z_segment(b, n, z, wa, wb, f, 1.0, h, m)
+                    z = z_segment(b, n, z, wa, wb, 0.0, f, h, m)
+                    z = z_segment(b, n, z, wa, wb, f, 1.0, h, m)
                 else:
-                    z = _z_segment(b, n, z, wa, wb, 0.0, 1.0, h, m)
+                    z = z_segment(b, n, z, wa, wb, 0.0, 1.0, h, m)
             elif wa * wb < 0.0:
                 # |theta_dot| has a kink where the velocity reverses: split the interval there
                 f = wa / (wa - wb)

@@ -44,22 +44,22 @@ import numpy as np
 from hystdisc.errors import HystdiscError
 from hystdisc.models.system import StateSpaceModel
 from hystdisc.simulation.ode import (
-    _A2,
-    _A3,
-    _A4,
-    _A5,
-    _A6,
-    _B,
-    _C,
+    A2,
+    A3,
+    A4,
+    A5,
+    A6,
     ATOL,
     MAX_STEPS_PER_SAMPLE,
     RTOL,
-    _error,
-    _input_at,
-    _next_step,
-    _over_budget,
-    _stages,
+    B,
+    C,
+    input_at,
     input_matrix,
+    next_step,
+    over_budget,
+    stages,
+    step_error,
 )
 from hystdisc.simulation.specialize import specialize
 
@@ -70,24 +70,24 @@ WORK_SIZE = 32
 @numba.njit(cache=True, inline="always")
 def _stage_state(x, ks, s, hh, xt):
     """Stage ``s``'s state ``x + hh * sum_j a_sj ks[j]`` into ``xt`` (the arithmetic of
-    :func:`~hystdisc.simulation.ode._stages`)."""
+    :func:`~hystdisc.simulation.ode.stages`)."""
     for i in range(x.shape[0]):
         acc = 0.0
         if s == 1:
-            acc = _A2[0] * ks[0, i]
+            acc = A2[0] * ks[0, i]
         elif s == 2:
-            acc = _A3[0] * ks[0, i] + _A3[1] * ks[1, i]
+            acc = A3[0] * ks[0, i] + A3[1] * ks[1, i]
         elif s == 3:
-            acc = _A4[0] * ks[0, i] + _A4[1] * ks[1, i] + _A4[2] * ks[2, i]
+            acc = A4[0] * ks[0, i] + A4[1] * ks[1, i] + A4[2] * ks[2, i]
         elif s == 4:
-            acc = _A5[0] * ks[0, i] + _A5[1] * ks[1, i] + _A5[2] * ks[2, i] + _A5[3] * ks[3, i]
+            acc = A5[0] * ks[0, i] + A5[1] * ks[1, i] + A5[2] * ks[2, i] + A5[3] * ks[3, i]
         elif s == 5:
             acc = (
-                _A6[0] * ks[0, i]
-                + _A6[1] * ks[1, i]
-                + _A6[2] * ks[2, i]
-                + _A6[3] * ks[3, i]
-                + _A6[4] * ks[4, i]
+                A6[0] * ks[0, i]
+                + A6[1] * ks[1, i]
+                + A6[2] * ks[2, i]
+                + A6[3] * ks[3, i]
+                + A6[4] * ks[4, i]
             )
         xt[i] = x[i] + hh * acc
 
@@ -96,14 +96,14 @@ def _stage_state(x, ks, s, hh, xt):
 def _coef(s, j):
     """The Butcher coefficient ``a_sj`` (``j < s``)."""
     if s == 1:
-        return _A2[j]
+        return A2[j]
     if s == 2:
-        return _A3[j]
+        return A3[j]
     if s == 3:
-        return _A4[j]
+        return A4[j]
     if s == 4:
-        return _A5[j]
-    return _A6[j]
+        return A5[j]
+    return A6[j]
 
 
 def _sens_step(x, S, U, k, tt, span, hh, p, act, need, ks, xt, u, dk, dX, jx, jp, work):
@@ -116,10 +116,10 @@ def _sens_step(x, S, U, k, tt, span, hh, p, act, need, ks, xt, u, dk, dX, jx, jp
         if s == 0:
             for i in range(n):
                 xt[i] = x[i]
-            _input_at(U, k, tt / span, u)
+            input_at(U, k, tt / span, u)
         else:
             _stage_state(x, ks, s, hh, xt)
-            _input_at(U, k, (tt + _C[s - 1] * hh) / span, u)
+            input_at(U, k, (tt + C[s - 1] * hh) / span, u)
         rate_jac(xt, u, p, need, jx, jp, work)  # noqa: F821
         for i in range(n):
             for c in range(m):
@@ -139,7 +139,7 @@ def _sens_step(x, S, U, k, tt, span, hh, p, act, need, ks, xt, u, dk, dX, jx, jp
         for c in range(m):
             acc = 0.0
             for s in range(6):
-                acc += _B[s] * dk[s, i, c]
+                acc += B[s] * dk[s, i, c]
             S[i, c] += hh * acc
 
 
@@ -173,7 +173,7 @@ def _integrate_sens(x0, S0, t, U, p, act, need, rtol, atol, Y, dY, max_steps):
     gx = np.zeros(n)
     gp = np.zeros(p.shape[0])
     work = np.zeros(WORK_SIZE)
-    _input_at(U, 0, 0.0, u)
+    input_at(U, 0, 0.0, u)
     Y[0] = observe(x, u, p)  # noqa: F821
     _output_sens(x, u, p, act, need, S, gx, gp, work, dY[0])
     h = (t[1] - t[0]) if t.shape[0] > 1 else 0.0
@@ -185,18 +185,18 @@ def _integrate_sens(x0, S0, t, U, p, act, need, rtol, atol, Y, dY, max_steps):
         while tt < span:
             hh = min(h, span - tt)
             cut = hh < h
-            _stages(x, U, k, tt, span, hh, p, ks, xt, u, x5)
-            err = _error(x, x5, U, k, tt, span, hh, p, ks, u, rtol, atol)
+            stages(x, U, k, tt, span, hh, p, ks, xt, u, x5)
+            err = step_error(x, x5, U, k, tt, span, hh, p, ks, u, rtol, atol)
             steps += 1
             total += 1
-            if not np.isfinite(err) or _over_budget(steps, total, k, max_steps):
+            if not np.isfinite(err) or over_budget(steps, total, k, max_steps):
                 return 1
             if err <= 1.0:
                 _sens_step(x, S, U, k, tt, span, hh, p, act, need, ks, xt, u, dk, dX, jx, jp, work)
                 tt += hh
                 x[:] = x5
-            h = _next_step(err, h, hh, cut)
-        _input_at(U, k, 1.0, u)
+            h = next_step(err, h, hh, cut)
+        input_at(U, k, 1.0, u)
         Y[k + 1] = observe(x, u, p)  # noqa: F821
         _output_sens(x, u, p, act, need, S, gx, gp, work, dY[k + 1])
     return 0
@@ -214,8 +214,8 @@ def _kernel(model: StateSpaceModel):
         rate=rate,
         observe=model.observe,
         observe_grad=model.observe_grad,
-        _stages=specialize(_stages, rate=rate),
-        _error=specialize(_error, rate=rate),
+        stages=specialize(stages, rate=rate),
+        step_error=specialize(step_error, rate=rate),
         _sens_step=specialize(_sens_step, rate_jac=jac),
         _output_sens=specialize(_output_sens, observe_grad=model.observe_grad),
     )

@@ -1,0 +1,1 @@
+"""Tests of the command line (hystdisc.cli), one file per command where it has its own."""

@@ -1,0 +1,1 @@
+"""Tests of the closing loop (hystdisc.closing): effects, structural effects, reselection, reduction, restarts."""

@@ -1,0 +1,1 @@
+"""Tests of stage 1 (hystdisc.discovery): the library, the shapes, the sparse regression."""

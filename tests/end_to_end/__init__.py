@@ -1,0 +1,1 @@
+"""Tests across the layers: faults, files, fuzzed inputs' corpus, the stress suites, measured data."""

@@ -1,0 +1,1 @@
+"""Tests of the measurement as the fits see it (hystdisc.measurement)."""

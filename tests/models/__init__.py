@@ -1,0 +1,1 @@
+"""Tests of the models layer (hystdisc.models): parameters, families, effects, systems."""

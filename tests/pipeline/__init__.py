@@ -1,0 +1,1 @@
+"""Tests of the estimator and its pipeline (hystdisc.estimator, hystdisc.pipeline)."""

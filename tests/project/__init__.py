@@ -1,0 +1,1 @@
+"""Tests of the repository: the house rules, the documentation, the notebooks, the README."""

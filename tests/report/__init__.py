@@ -1,0 +1,1 @@
+"""Tests of the HTML report and its Markdown summary (hystdisc.report)."""

@@ -1,0 +1,1 @@
+"""Tests of the typed, versioned results (hystdisc.results)."""

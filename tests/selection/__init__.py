@@ -1,0 +1,1 @@
+"""Tests of the choice among fits (hystdisc.selection): families, current laws, the flowchart."""
