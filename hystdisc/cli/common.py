@@ -54,6 +54,10 @@ def add_data_options(p: argparse.ArgumentParser) -> None:
 
 
 def name_value_pairs(items: list[str], flag: str) -> dict[str, str]:
+    """``name=value`` items of a repeated option (comma-separated too) as a dict.
+
+    A malformed item is a one-line error naming ``flag``.
+    """
     out = {}
     for item in items:
         for part in item.split(","):

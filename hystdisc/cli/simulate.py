@@ -123,6 +123,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def parse_float(text: str, what: str) -> float:
+    """``text`` as a float, or a one-line error naming ``what``."""
     try:
         return float(text)
     except (TypeError, ValueError):
@@ -130,6 +131,7 @@ def parse_float(text: str, what: str) -> float:
 
 
 def parse_int(text: str, what: str) -> int:
+    """``text`` as an int, or a one-line error naming ``what``."""
     try:
         return int(text)
     except (TypeError, ValueError):

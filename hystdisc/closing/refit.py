@@ -17,6 +17,7 @@ from hystdisc.closing.scores import EffectScore, with_effects
 from hystdisc.data import distinct_currents
 from hystdisc.discovery import family_start
 from hystdisc.fitting import OEFit, OutputErrorFitter
+from hystdisc.fitting.multistart import screen_start
 from hystdisc.measurement import FitData
 from hystdisc.models import EFFECTS, Z_TORQUE_TERMS
 from hystdisc.stats import bic_change
@@ -206,10 +207,7 @@ def _start_rss(data: FitData, fit: OEFit, effects: Sequence[str], start: dict) -
     par0 = fit.par
     extra = [e for e in effects if e not in par0.effects]
     par = par0.like(start, tuple(par0.effects) + tuple(extra))
-    v = np.concatenate([par.x0, np.asarray(fit.nuisance, dtype=float).ravel()])
-    with np.errstate(all="ignore"):
-        r = OutputErrorFitter(data, par).residuals(v)
-    return float(r @ r) if np.all(np.isfinite(r)) else float("inf")
+    return screen_start(data, par, 0, nuisance=fit.nuisance)[1]
 
 
 def screen_starts(

@@ -58,6 +58,7 @@ from hystdisc.closing.refit import EFFECT_BIC_MARGIN
 from hystdisc.closing.residual import natural_frequency
 from hystdisc.closing.scores import EffectScore
 from hystdisc.fitting import OEFit, OutputErrorFitter
+from hystdisc.fitting.multistart import screen_start
 from hystdisc.measurement import FitData
 from hystdisc.models import EFFECTS
 from hystdisc.models.effects import Structure
@@ -399,9 +400,7 @@ def screen_cells(
     for st in cells.values():
         par = fit.par.like(st, (*fit.par.effects, name))
         # a screen, not a fit: no intervals (their Jacobian was a fifth of the cost)
-        x, sub_rss = OutputErrorFitter(sub, par, max_nfev=WHEEL_SCREEN_NFEV).screen(
-            WHEEL_SCREEN_NFEV
-        )
+        x, sub_rss = screen_start(sub, par, WHEEL_SCREEN_NFEV)
         if not np.isfinite(sub_rss):
             continue
         params = par.params(x)

@@ -57,6 +57,7 @@ def driven_signature(t: np.ndarray, theta: np.ndarray) -> tuple[float, float]:
 
 
 def relatively_close(a: float, b: float, tol: float) -> bool:
+    """Whether ``a`` and ``b`` agree within the relative tolerance ``tol``."""
     return abs(a - b) <= tol * max(abs(a), abs(b), 1e-300)
 
 

@@ -81,6 +81,24 @@ def _quiet(msg: str) -> None:
     return None
 
 
+def screen_start(
+    data: FitData, par: Parametrization, nfev: int, nuisance: np.ndarray | None = None
+) -> tuple[np.ndarray, float]:
+    """The one start screener: a start's free parameters and RSS after ``nfev``
+    Levenberg-Marquardt iterations (:meth:`OutputErrorFitter.screen`; inf when its
+    simulation diverges), or at the start itself for ``nfev = 0`` with the run nuisances
+    ``nuisance`` (a refit's starts, judged by one simulation each). The multi-start fits,
+    the closing loop's effect refits and its structural grids all screen with it.
+    """
+    if nfev > 0:
+        return OutputErrorFitter(data, par, max_nfev=nfev).screen(nfev)
+    nu = np.zeros(0) if nuisance is None else np.asarray(nuisance, dtype=float).ravel()
+    v = np.concatenate([par.x0, nu])
+    with np.errstate(all="ignore"):
+        r = OutputErrorFitter(data, par).residuals(v)
+    return par.x0, (float(r @ r) if np.all(np.isfinite(r)) else float("inf"))
+
+
 def best_of_starts(
     data: FitData,
     starts: Sequence[tuple[str, Parametrization]],
@@ -175,11 +193,8 @@ def best_of_starts(
         label, par = starts[k]
         say(f"stage 2: output-error fit of {name}, start {k + 1}/{len(starts)} ({label})")
         if strict:
-            return OutputErrorFitter(data, par, max_nfev=screen_nfev).screen(screen_nfev)
-        out = guard.guard(
-            f"{name} start '{label}'",
-            lambda: OutputErrorFitter(data, par, max_nfev=screen_nfev).screen(screen_nfev),
-        )
+            return screen_start(data, par, screen_nfev)
+        out = guard.guard(f"{name} start '{label}'", lambda: screen_start(data, par, screen_nfev))
         return (par.x0, float("inf")) if out is None else out
 
     run = list(range(1 if lead is not None else 0, len(starts)))

@@ -35,6 +35,7 @@ from __future__ import annotations
 import numpy as np
 
 import hystdisc.fitting.simulate as _sim
+from hystdisc.fitting.jacobian import difference_steps
 from hystdisc.fitting.parametrization import SystemParametrization
 from hystdisc.measurement.chain import measured_output
 from hystdisc.measurement.fitdata import FitData
@@ -57,12 +58,6 @@ LOCKSTEP_INTEGRATION = Integration(rtol=LOCKSTEP_RTOL, atol=LOCKSTEP_ATOL)
 #: beyond it has excited a fast mode the nominal's steps do not resolve (a perturbed
 #: initial angle against a stiff wheel), and its run is differenced by separate runs.
 LOCKSTEP_MAX_MOVE = 1e-2
-
-
-def difference_steps(v: np.ndarray, rel_step: float) -> np.ndarray:
-    """The forward-difference step of every entry of ``v`` (the fitter's convention)."""
-    steps = rel_step * np.maximum(np.abs(v), 1e-3 * (np.abs(v).max() + 1e-12))
-    return np.maximum(steps, 1e-10)
 
 
 def system_jacobian(

@@ -130,6 +130,24 @@ def effective_current(i, i0: float | None = None):
     return i0 * np.tanh(np.asarray(i, dtype=float) / i0) if np.ndim(i) else i0 * math.tanh(i / i0)
 
 
+def current_law(i, a: float, b: float, q: float = 0.0, i0: float | None = None):
+    """A current law's value, the one implementation: ``a + b s(i) + q i^2``.
+
+    ``s(i)`` is :func:`effective_current` (``i`` itself without ``i0``), so the linear law
+    is ``q = 0`` and no ``i0``, the quadratic law a ``q``, the saturating law an ``i0``.
+    The current-law selection (:mod:`hystdisc.selection.laws`) and the families' laws
+    (:meth:`hystdisc.models.Family.law_value`) both compute with it.
+
+    Examples
+    --------
+    >>> current_law(2.0, 1.0, 2.0, q=-1.0), round(float(current_law(2.0, 0.5, 3.0, i0=0.3)), 4)
+    (1.0, 1.4)
+    >>> current_law(np.array([0.0, 1.0]), 1.0, 2.0)
+    array([1., 3.])
+    """
+    return a + b * effective_current(i, i0) + q * i * i
+
+
 @dataclass
 class TermModel:
     """A model in generic term form (see module docstring).

@@ -46,7 +46,7 @@ from scipy.optimize import minimize_scalar
 from scipy.stats import chi2
 
 from hystdisc.errors import HystdiscError
-from hystdisc.models import LAW_SUFFIX
+from hystdisc.models import LAW_SUFFIX, current_law
 
 #: The candidate laws, simplest first, and their coefficients.
 LAWS: dict[str, tuple[str, ...]] = {
@@ -74,23 +74,20 @@ SE_FLOOR = 1e-3
 def law_value(law: str, coefs: Mapping[str, float], i) -> np.ndarray | float:
     """The law's value at current(s) ``i`` for coefficients ``{a, b[, q | i0]}``.
 
+    The law's name is checked here; the value is :func:`hystdisc.models.current_law`,
+    the one implementation the families use too.
+
     Examples
     --------
     >>> law_value("quadratic", {"a": 1.0, "b": 2.0, "q": -1.0}, 2.0)
     1.0
     """
-    a, b = coefs["a"], coefs["b"]
-    i = np.asarray(i, dtype=float)
-    if law == "linear":
-        out = a + b * i
-    elif law == "quadratic":
-        out = a + b * i + coefs["q"] * i * i
-    elif law == "saturating":
-        out = a + b * coefs["i0"] * np.tanh(i / coefs["i0"])
-    else:
+    if law not in LAWS:
         raise HystdiscError(f"unknown current law '{law}'; fix: use one of {', '.join(LAWS)}")
+    q = coefs["q"] if law == "quadratic" else 0.0
+    i0 = coefs["i0"] if law == "saturating" else None
+    out = current_law(np.asarray(i, dtype=float), coefs["a"], coefs["b"], q=q, i0=i0)
     return out if np.ndim(out) else float(out)
-    raise HystdiscError(f"unknown current law '{law}'; fix: use one of {', '.join(LAWS)}")
 
 
 def _wls(X: np.ndarray, v: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, float]:

@@ -176,7 +176,7 @@ def z_segment(b, n, z, wa, wb, f0, f1, h, m):
     """RK4 for z over the fraction [f0, f1] of a sample interval, velocity linear in time.
 
     A sub-step in which z changes sign is redone in two parts split at the (secant) zero
-    of z, since the |z|^n terms have a kink there.
+    of z, since the ``|z|^n`` terms have a kink there.
     """
     kinked = b[2] != 0.0 or b[3] != 0.0 or b[4] != 0.0
     for s in range(m):

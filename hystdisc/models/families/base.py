@@ -7,7 +7,7 @@ from collections.abc import Mapping
 
 from hystdisc.errors import HystdiscError
 from hystdisc.models.params import BIG, Param
-from hystdisc.models.terms import TermModel, effective_current
+from hystdisc.models.terms import TermModel, current_law
 
 #: The current laws a law parameter may follow (see :meth:`Family.law_value`).
 CURRENT_LAWS = ("linear", "quadratic", "saturating")
@@ -187,9 +187,9 @@ class Family:
         (1.4, 6.5)
         """
         passive, slope = self.current_laws[key]
-        s = effective_current(float(current), p.get(key + LAW_SUFFIX["saturating"]))
         q = p.get(key + LAW_SUFFIX["quadratic"], 0.0)
-        return float(p[passive] + p[slope] * s + q * current * current)
+        i0 = p.get(key + LAW_SUFFIX["saturating"])
+        return float(current_law(float(current), p[passive], p[slope], q=q, i0=i0))
 
     def apply_laws(self, tm: TermModel, p: Mapping[str, float]) -> TermModel:
         """Put the laws that are not linear in ``p`` into the term model ``tm`` (a term
