@@ -11,6 +11,11 @@ forced run, the torque of a driven run):
   :func:`detect_period` on the input of a forced run or the imposed motion of a driven
   one), the steady-state output repeats too, and ``(y(t + P) - y(t)) / sqrt(2)`` is the
   noise alone, whatever its spectrum. The first period (start-up transient) is left out.
+* **cycle-to-cycle repeatability** (:func:`cycle_noise`): when the period is no whole
+  number of samples (any measured record), the cycles are cut at the motion's upward
+  crossings and every sample compared with the mean cycle at its phase: the measurement's
+  own floor, what no deterministic model of the motion can fit, also on records filtered
+  before they were stored (where differences of neighbouring samples mean nothing).
   These differences are also a *sample of the noise* whose spectrum the residual's
   whiteness is judged against (:func:`hystdisc.closing.diagnostics.noise_whiteness`).
 * **quantization floor** (:mod:`~hystdisc.data.quantization`): on a lattice of step
@@ -18,8 +23,9 @@ forced run, the torque of a driven run):
   above the other estimate.
 
 :func:`measurement_noise` combines them into a :class:`NoiseEstimate`: per run, the
-period estimate when there is one, else the differences, raised to the quantization
-floor; the median over runs is the noise level the discovery uses.
+period estimate when there is one, else the cycle estimate, else (a fallback, said to
+be one) the differences, raised to the quantization floor; the median over runs is the
+noise level the discovery uses.
 
 Examples
 --------
@@ -42,13 +48,21 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.interpolate import CubicSpline
 
 from hystdisc.data.dataset import Run
 from hystdisc.data.preprocessing import estimate_noise, screened_rms
 from hystdisc.data.quantization import Quantization, detect_quantization
 from hystdisc.registry import get_experiment
 
-__all__ = ["NoiseEstimate", "detect_period", "measurement_noise", "period_noise"]
+__all__ = [
+    "NoiseEstimate",
+    "cycle_noise",
+    "cycle_starts",
+    "detect_period",
+    "measurement_noise",
+    "period_noise",
+]
 
 #: Periods a record must hold for the period estimate (the first is left out).
 MIN_PERIODS = 3
@@ -162,6 +176,117 @@ def period_noise(y: np.ndarray, period: int) -> tuple[float, np.ndarray] | None:
     return screened_rms(d), d
 
 
+def cycle_starts(x: np.ndarray) -> np.ndarray:
+    """Fractional sample indices where the motion ``x`` crosses its mean upwards.
+
+    A crossing counts only after the motion has been below ``-h`` and then above ``+h``
+    since the last one (``h`` a tenth of its RMS), so noise at a crossing does not split a
+    cycle.
+
+    Examples
+    --------
+    >>> t = np.arange(4000) / 1000.0
+    >>> np.round(cycle_starts(np.sin(2 * np.pi * (t - 0.25))), 1)
+    array([ 250., 1250., 2250., 3250.])
+    """
+    v = np.asarray(x, dtype=np.float64).reshape(-1)
+    v = v - v.mean()
+    h = 0.1 * float(np.sqrt(np.mean(v * v)))
+    if h == 0.0:
+        return np.zeros(0)
+    below = np.flatnonzero(v < -h)
+    above = np.flatnonzero(v > h)
+    out = []
+    i = 0
+    while below.size and above.size:
+        # the first time above +h after having been below -h: the crossing just before it
+        j = int(np.searchsorted(above, below[0]))
+        if j == above.size:
+            break
+        k = int(above[j])
+        c = int(np.flatnonzero(v[below[0] : k + 1] <= 0.0)[-1]) + int(below[0])
+        out.append(c + v[c] / (v[c] - v[c + 1]))
+        i = k
+        below = below[below > i]
+        above = above[above > i]
+    return np.asarray(out)
+
+
+def cycle_noise(x: np.ndarray, y: np.ndarray) -> tuple[float, np.ndarray] | None:
+    """The output's cycle-to-cycle repeatability: cycles aligned on the imposed motion.
+
+    The record is cut into cycles at the motion's upward crossings
+    (:func:`cycle_starts`); every cycle from the second on (the first holds the start-up
+    transient) is sampled at the same fractions of its length (linear interpolation), and
+    every sample's deviation from the mean cycle at its phase, times ``sqrt(K / (K - 1))``
+    for ``K`` cycles, is what no deterministic model of the motion can fit: the noise, filtered or
+    not, plus what does not repeat. Unlike :func:`period_noise` it needs no period of a
+    whole number of samples, so it holds for measured records (a rig's sine is never
+    exactly a whole number of samples long). Its 5-sigma-screened RMS is returned.
+
+    Parameters
+    ----------
+    x : array_like
+        The imposed motion (or the input) of the run.
+    y : array_like
+        The measured output.
+
+    Returns
+    -------
+    (float, ndarray) or None
+        The repeatability (a standard deviation, data units) and the deviations (a sample
+        of what does not repeat, in phase order cycle after cycle); None when there are
+        fewer than :data:`MIN_PERIODS` cycles, or when the cycles differ in length by more
+        than 5 %. Cycles whose motion does not repeat the median cycle's to
+        :data:`REPEAT_TOL` of its RMS (a ramp, a stop) are left out; None when fewer than
+        two are left.
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(0)
+    >>> t = np.arange(9000) / 1000.0
+    >>> x = np.sin(2 * np.pi * 0.77 * t)  # 1298.7 samples a cycle
+    >>> y = np.tanh(5 * np.cos(2 * np.pi * 0.77 * t)) + rng.normal(0, 0.02, t.size)
+    >>> round(cycle_noise(x, y)[0] / 0.02, 1)
+    1.0
+    """
+    xv = np.asarray(x, dtype=np.float64).reshape(-1)
+    yv = np.asarray(y, dtype=np.float64).reshape(-1)
+    if xv.size != yv.size or not (np.all(np.isfinite(xv)) and np.all(np.isfinite(yv))):
+        return None
+    c = cycle_starts(xv)
+    if c.size < MIN_PERIODS + 1:  # MIN_PERIODS whole cycles
+        return None
+    c = c[1:]  # the first cycle holds the start-up transient
+    lengths = np.diff(c)
+    m = int(round(float(np.median(lengths))))
+    if m < 8 or np.max(np.abs(lengths / np.median(lengths) - 1.0)) > 0.05:
+        return None
+    idx = np.arange(xv.size, dtype=np.float64)
+    grid = c[:-1, None] + lengths[:, None] * (np.arange(m) / m)[None, :]
+    # cycles whose motion departs from the median cycle (a ramp at the end of a test, a
+    # stop) are left out; the others must repeat to REPEAT_TOL of the motion's RMS
+    xs = np.interp(grid, idx, xv)
+    dev = np.sqrt(np.mean((xs - np.median(xs, axis=0)) ** 2, axis=1))
+    keep = dev <= REPEAT_TOL * np.sqrt(np.mean((xv - xv.mean()) ** 2))
+    k = int(keep.sum())
+    if k < MIN_PERIODS - 1:
+        return None
+    # the mean cycle on the phase grid (cubic: a linear interpolation's error at a sharp
+    # corner of a hysteresis loop would read as noise)
+    mean = CubicSpline(idx, yv)(grid[keep]).mean(axis=0)
+    # every sample of the kept cycles against the mean cycle at its own phase (sampling
+    # the cycles on a common grid instead would average neighbouring samples' noise)
+    i = np.arange(int(np.ceil(c[0])), int(np.floor(c[-1])) + 1)
+    i = i[i < yv.size]
+    cyc = np.clip(np.searchsorted(c, i, side="right") - 1, 0, lengths.size - 1)
+    i, cyc = i[keep[cyc]], cyc[keep[cyc]]
+    phase = (i - c[cyc]) / lengths[cyc] * m
+    ref = CubicSpline(np.arange(m + 1), np.append(mean, mean[0]), bc_type="periodic")(phase)
+    d = (yv[i] - ref) * math.sqrt(k / (k - 1.0))
+    return screened_rms(d), d
+
+
 @dataclass
 class NoiseEstimate:
     """The noise on the measured output, how it was estimated, and the encoder.
@@ -173,7 +298,9 @@ class NoiseEstimate:
         of each run's estimate.
     method : str
         How most runs were estimated: ``"period"`` (period-to-period differences),
-        ``"differences"`` (high-order differences, white noise) or ``"quantization"``
+        ``"cycles"`` (cycle-to-cycle repeatability, cycles aligned on the motion),
+        ``"differences"`` (high-order differences, white noise: the fallback when no run
+        repeats) or ``"quantization"``
         (the quantization floor ``q / sqrt(12)``, above the other estimate).
     signal : str
         The measured output (``theta`` or ``torque``).
@@ -181,15 +308,16 @@ class NoiseEstimate:
         The median over runs of the difference estimate (what earlier versions used).
     runs : list of dict
         Per run: ``name``, ``differences``, ``period`` (estimate or None),
-        ``period_samples``, ``floor`` (quantization floor or None), ``used``, ``method``.
+        ``period_samples``, ``cycles`` (repeatability or None), ``floor`` (quantization
+        floor or None), ``used``, ``method``.
     encoder : Quantization or None
         The lattice of the angle (``theta``) shared by the runs: an encoder's step and
         counts per revolution; None when the angle is not quantized.
     output_quantization : Quantization or None
         The lattice of the measured output (the encoder for release and forced runs).
     samples : list of ndarray
-        Period-to-period differences over ``sqrt(2)``: samples of the noise, for its
-        spectrum (empty without a periodic run).
+        Period-to-period differences over ``sqrt(2)`` or deviations from the mean cycle:
+        samples of the noise, for its spectrum (empty without a periodic run).
     """
 
     std: float
@@ -200,6 +328,13 @@ class NoiseEstimate:
     encoder: Quantization | None = None
     output_quantization: Quantization | None = None
     samples: list[np.ndarray] = field(default_factory=list, repr=False)
+
+    @property
+    def pooled(self) -> float | None:
+        """The runs' repeatability pooled (RMS over the runs with a period or cycle
+        estimate), None when no run repeats."""
+        vals = [r["used"] for r in self.runs if r["method"] in ("period", "cycles")]
+        return float(np.sqrt(np.mean(np.square(vals)))) if vals else None
 
     @property
     def period(self) -> float | None:
@@ -217,6 +352,7 @@ class NoiseEstimate:
             "signal": self.signal,
             "differences": self.differences,
             "period": self.period,
+            "pooled": self.pooled,
             "quantization_floor": floor,
             "runs": [dict(r) for r in self.runs],
         }
@@ -224,12 +360,20 @@ class NoiseEstimate:
     def describe(self) -> str:
         """One line: the level and how it was estimated."""
         n_per = sum(r["period"] is not None for r in self.runs)
+        n_cyc = sum(r.get("cycles") is not None for r in self.runs)
         how = {
             "period": (
                 f"period-to-period differences ({n_per} of {len(self.runs)} runs periodic; "
                 f"high-order differences give {self.differences:.3g})"
             ),
-            "differences": "high-order differences (white noise assumed)",
+            "cycles": (
+                f"the output's cycle-to-cycle repeatability ({n_cyc} of {len(self.runs)} runs, "
+                f"cycles aligned on the motion; high-order differences give "
+                f"{self.differences:.3g})"
+            ),
+            "differences": (
+                "high-order differences (white noise assumed; a fallback: no run repeats)"
+            ),
             "quantization": (
                 f"the quantization floor q/sqrt(12) (differences give {self.differences:.3g})"
             ),
@@ -291,29 +435,36 @@ def measurement_noise(runs: Sequence[Run], experiment) -> NoiseEstimate:
         ref = _reference(r, exp)
         period = detect_period(ref) if ref is not None else None
         per = period_noise(y, period) if period is not None else None
+        cyc = cycle_noise(ref, y) if ref is not None and per is None else None
         tq = detect_quantization(r.theta, angle=True)
         oq = tq if out == "theta" else detect_quantization(y)
         theta_q.append(tq)
         out_q.append(oq)
-        est, method = (per[0], "period") if per is not None else (diff, "differences")
+        if per is not None:
+            est, method = per[0], "period"
+        elif cyc is not None:
+            est, method = cyc[0], "cycles"
+        else:
+            est, method = diff, "differences"
         floor = oq.floor if oq is not None else None
         if floor is not None and floor > est:
             est, method = floor, "quantization"
-        if per is not None:
-            samples.append(per[1])
+        if per is not None or cyc is not None:
+            samples.append(per[1] if per is not None else cyc[1])
         rows.append(
             {
                 "name": r.name,
                 "differences": diff,
                 "period": None if per is None else per[0],
                 "period_samples": period if per is not None else None,
+                "cycles": None if cyc is None else cyc[0],
                 "floor": floor,
                 "used": est,
                 "method": method,
             }
         )
     counts = Counter(row["method"] for row in rows)
-    order = {"period": 0, "quantization": 1, "differences": 2}
+    order = {"period": 0, "cycles": 1, "quantization": 2, "differences": 3}
     method = min(counts, key=lambda m: (-counts[m], order[m])) if rows else "differences"
     return NoiseEstimate(
         std=float(np.median([row["used"] for row in rows])) if rows else 0.0,

@@ -195,7 +195,8 @@ def _residual_lines(res: Results) -> list[str]:
 
 _HOW = {
     "period": "period-to-period differences of the periodic excitation",
-    "differences": "high-order differences (white noise assumed)",
+    "cycles": "the output's cycle-to-cycle repeatability (cycles aligned on the motion)",
+    "differences": "high-order differences (white noise assumed; a fallback: no run repeats)",
     "quantization": "the quantization floor q/sqrt(12)",
 }
 
