@@ -117,7 +117,8 @@ def make_dataset(
     from hystdisc.data.dataset import Dataset, Run
     from hystdisc.models import Model
     from hystdisc.simulation.runs import simulate_driven_runs
-    from hystdisc.simulation.synth import generate, parse_drive
+    from hystdisc.simulation.synth import generate
+    from hystdisc.simulation.synth_checks import parse_drive
 
     cond = CONDITIONS[condition] if isinstance(condition, str) else condition
     model = Model(family, params)

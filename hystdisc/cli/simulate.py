@@ -205,7 +205,8 @@ def parse_prefilter(text: str) -> dict[str, Any]:
 
 def settings_from_args(args: argparse.Namespace) -> dict[str, Any]:
     """Scenario (if any) overridden by the command-line flags."""
-    from hystdisc.simulation.synth import load_scenario, parse_drive
+    from hystdisc.simulation.scenarios import load_scenario
+    from hystdisc.simulation.synth_checks import parse_drive
 
     sc: dict[str, Any] = load_scenario(args.scenario) if args.scenario else {}
     sc.setdefault("params", {})
@@ -283,7 +284,8 @@ def describe(ds, path: Path, model: str) -> str:
 
 
 def _regenerate(args: argparse.Namespace) -> int:
-    from hystdisc.simulation.synth import generate_from_scenario, load_scenario, write_dataset
+    from hystdisc.simulation.scenarios import generate_from_scenario, load_scenario
+    from hystdisc.simulation.synth import write_dataset
 
     folder = Path(args.regenerate)
     if not folder.is_dir():
@@ -323,7 +325,8 @@ def _regenerate(args: argparse.Namespace) -> int:
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``hystdisc simulate``."""
-    from hystdisc.simulation.synth import generate_from_scenario, write_dataset
+    from hystdisc.simulation.scenarios import generate_from_scenario
+    from hystdisc.simulation.synth import write_dataset
 
     if args.regenerate:
         if args.scenario:

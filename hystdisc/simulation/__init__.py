@@ -6,7 +6,9 @@
 - :mod:`~hystdisc.simulation.ode`: any state-space model, with one error-controlled
   integrator; :class:`~hystdisc.simulation.integration.Integration`: the integrators'
   settings inside a fit;
-- :mod:`~hystdisc.simulation.synth`: synthetic datasets (``hystdisc simulate``);
+- :mod:`~hystdisc.simulation.synth`: synthetic datasets (``hystdisc simulate``), their
+  settings checked by :mod:`~hystdisc.simulation.synth_checks` and read from scenario
+  files by :mod:`~hystdisc.simulation.scenarios`;
 - :mod:`~hystdisc.simulation.studies`: the seed's parameter studies.
 """
 

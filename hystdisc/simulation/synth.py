@@ -28,8 +28,9 @@ rest at 0 (``--effect series_compliance:k_w=900,c_w=3,m_w=0.3`` on the command l
 ``[effects.series_compliance]`` in a scenario; release and driven experiments: a driven
 damper behind a compliant mount, the mount at rest).
 
-Scenarios are TOML files with the same settings as ``hystdisc simulate`` (see
-:func:`load_scenario`).
+The settings are checked by :mod:`hystdisc.simulation.synth_checks`. Scenarios are TOML
+files with the same settings as ``hystdisc simulate``
+(:mod:`hystdisc.simulation.scenarios`).
 
 Examples
 --------
@@ -55,61 +56,29 @@ from typing import Any
 import numpy as np
 
 from hystdisc import registry
-from hystdisc.data import Dataset, Run, parse_toml, write_csv
+from hystdisc.data import Dataset, Run, write_csv
 from hystdisc.errors import HystdiscError
 from hystdisc.models import Model, TermModel
 from hystdisc.simulation import simulate_driven_runs, simulate_mech, simulate_system
 from hystdisc.simulation.prefilter import apply_prefilter, check_prefilter
+from hystdisc.simulation.synth_checks import (
+    check_currents,
+    check_input_spec,
+    check_number,
+    check_spikes,
+    parse_drive,
+)
 
 __all__ = [
     "DEFAULT_CURRENTS",
-    "DEFAULT_INPUT",
-    "SCENARIO_KEYS",
     "generate",
-    "generate_from_scenario",
-    "load_scenario",
     "make_input",
-    "normalize_scenario",
-    "parse_drive",
     "round_significant",
-    "scenario_model",
     "write_dataset",
 ]
 
 DEFAULT_CURRENTS = (0.0, 0.25, 0.5, 0.75, 1.0)
 """The seed's current steps, in A."""
-
-DEFAULT_INPUT: dict[str, Any] = {"kind": "multisine", "rms": 10.0, "f_min": 0.5, "f_max": 5.0}
-"""Input of a ``forced`` experiment when none is given (per unit inertia, N*m)."""
-
-INPUT_KEYS = {
-    "multisine": {"kind", "rms", "f_min", "f_max"},
-    "sine": {"kind", "amplitude", "frequency"},
-}
-
-SCENARIO_KEYS = (
-    "model",
-    "declared",
-    "description",
-    "params",
-    "effects",
-    "currents",
-    "experiment",
-    "theta0",
-    "duration",
-    "fs",
-    "noise",
-    "theta_noise",
-    "delay",
-    "seed",
-    "encoder_counts",
-    "spikes",
-    "prefilter",
-    "drives",
-    "input",
-    "output",
-)
-"""Keys a scenario TOML may hold (``declared`` and ``description`` are informative only)."""
 
 MAX_SAMPLES = 10_000_000
 """Most samples :func:`generate` makes in all runs together (80 MB per signal)."""
@@ -118,124 +87,7 @@ CSV_DIGITS = 7
 """Significant digits kept when a synthetic dataset is written (:func:`write_dataset`)."""
 
 
-# ----------------------------------------------------------------------------- checks
-
-
-def _number(value: Any, name: str, *, positive: bool = False, nonneg: bool = False) -> float:
-    if isinstance(value, bool):
-        raise HystdiscError(f"{name} = {value!r} is not a number; fix: give a number")
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise HystdiscError(f"{name} = {value!r} is not a number; fix: give a number") from None
-    if not math.isfinite(v):
-        raise HystdiscError(f"{name} = {v} is not finite; fix: give a finite number")
-    if positive and v <= 0:
-        raise HystdiscError(f"{name} = {v:g} must be positive; fix: give a value > 0")
-    if nonneg and v < 0:
-        raise HystdiscError(f"{name} = {v:g} is negative; fix: give a value >= 0")
-    return v
-
-
-def _check_currents(currents: Any) -> list[float]:
-    if isinstance(currents, (int, float)) and not isinstance(currents, bool):
-        currents = [currents]
-    try:
-        items = list(currents)
-    except TypeError:
-        raise HystdiscError(
-            f"currents = {currents!r} is not a list; fix: give e.g. 0,0.25,0.5,0.75,1"
-        ) from None
-    if not items:
-        raise HystdiscError("no currents given; fix: give at least one coil current, e.g. 0,0.5,1")
-    out = []
-    for c in items:
-        v = _number(c, "current")
-        if v < 0:
-            raise HystdiscError(
-                f"current {v:g} A is negative; fix: give the coil current magnitude (>= 0 A)"
-            )
-        out.append(v)
-    return out
-
-
-def parse_drive(spec: Any) -> dict[str, float]:
-    """Check one sine drive: ``{"amplitude": A, "frequency": f}`` or the text ``"A@f"``.
-
-    Examples
-    --------
-    >>> parse_drive("0.3@1.0")
-    {'amplitude': 0.3, 'frequency': 1.0}
-    >>> parse_drive({"amplitude": 0.1, "frequency": 3})
-    {'amplitude': 0.1, 'frequency': 3.0}
-    """
-    if isinstance(spec, str):
-        parts = spec.split("@")
-        if len(parts) != 2:
-            raise HystdiscError(
-                f"drive {spec!r} is not AMPLITUDE@FREQUENCY; fix: write e.g. --drive 0.3@1.0 "
-                "(0.3 rad at 1 Hz)"
-            )
-        spec = {"amplitude": parts[0].strip(), "frequency": parts[1].strip()}
-    if not isinstance(spec, Mapping):
-        raise HystdiscError(
-            f"drive {spec!r} is not a table; fix: write {{amplitude = 0.3, frequency = 1.0}}"
-        )
-    unknown = sorted(set(spec) - {"amplitude", "frequency"})
-    if unknown:
-        raise HystdiscError(
-            f"unknown drive setting '{unknown[0]}'; fix: use only amplitude and frequency"
-        )
-    if "amplitude" not in spec or "frequency" not in spec:
-        raise HystdiscError(
-            f"drive {dict(spec)!r} lacks amplitude or frequency; fix: give both, e.g. 0.3@1.0"
-        )
-    return {
-        "amplitude": _number(spec["amplitude"], "drive amplitude", positive=True),
-        "frequency": _number(spec["frequency"], "drive frequency", positive=True),
-    }
-
-
-def _check_input_spec(spec: Mapping[str, Any] | None) -> dict[str, Any]:
-    if spec is None:
-        return dict(DEFAULT_INPUT)
-    if not isinstance(spec, Mapping):
-        raise HystdiscError(
-            f"input {spec!r} is not a table; fix: give e.g. "
-            '{kind = "multisine", rms = 10, f_min = 0.5, f_max = 5}'
-        )
-    kind = str(spec.get("kind", "multisine")).strip().lower()
-    if kind not in INPUT_KEYS:
-        raise HystdiscError(f"unknown input kind {kind!r}; fix: use one of {', '.join(INPUT_KEYS)}")
-    unknown = sorted(set(spec) - INPUT_KEYS[kind])
-    if unknown:
-        raise HystdiscError(
-            f"unknown {kind} input setting '{unknown[0]}'; fix: use only "
-            f"{', '.join(sorted(INPUT_KEYS[kind] - {'kind'}))}"
-        )
-    out: dict[str, Any] = {"kind": kind}
-    if kind == "multisine":
-        out["rms"] = _number(spec.get("rms", DEFAULT_INPUT["rms"]), "input rms", nonneg=True)
-        out["f_min"] = _number(
-            spec.get("f_min", DEFAULT_INPUT["f_min"]), "input f_min", nonneg=True
-        )
-        out["f_max"] = _number(
-            spec.get("f_max", DEFAULT_INPUT["f_max"]), "input f_max", positive=True
-        )
-        if out["f_max"] < out["f_min"]:
-            raise HystdiscError(
-                f"input f_max = {out['f_max']:g} Hz is below f_min = {out['f_min']:g} Hz; "
-                "fix: give f_min <= f_max"
-            )
-    else:
-        if "amplitude" not in spec or "frequency" not in spec:
-            raise HystdiscError(
-                "a sine input needs amplitude and frequency; fix: give both, e.g. "
-                '{kind = "sine", amplitude = 10, frequency = 1.5}'
-            )
-        out["amplitude"] = _number(spec["amplitude"], "input amplitude", nonneg=True)
-        out["frequency"] = _number(spec["frequency"], "input frequency", positive=True)
-    return out
+# ----------------------------------------------------------------------------- input
 
 
 def make_input(
@@ -256,7 +108,7 @@ def make_input(
     >>> round(float(np.sqrt(np.mean(u**2))), 6)
     2.0
     """
-    s = _check_input_spec(spec)
+    s = check_input_spec(spec)
     t = np.asarray(t, dtype=float)
     if s["kind"] == "sine":
         return s["amplitude"] * np.sin(2.0 * np.pi * s["frequency"] * (t - t[0]))
@@ -355,8 +207,8 @@ def generate(
         ordered drive by drive, each at every current. Default ``0.3@1.0``.
     input_spec : dict, optional
         Forced only: ``{"kind": "multisine", "rms", "f_min", "f_max"}`` (default
-        :data:`DEFAULT_INPUT`) or ``{"kind": "sine", "amplitude", "frequency"}``; every run
-        gets its own random phases.
+        :data:`~hystdisc.simulation.synth_checks.DEFAULT_INPUT`) or
+        ``{"kind": "sine", "amplitude", "frequency"}``; every run gets its own random phases.
     theta_noise : float
         Driven only: noise standard deviation on the measured ``theta`` (rad).
     delay : float
@@ -412,12 +264,12 @@ def generate(
             f"{', '.join(registry.experiment_names()[:-1])} or {registry.experiment_names()[-1]}"
         )
     kind = registry.get_experiment(exp)
-    cur = _check_currents(currents)
-    duration = _number(duration, "duration", positive=True)
-    fs = _number(fs, "fs", positive=True)
-    noise = _number(noise, "noise", nonneg=True)
-    theta_noise = _number(theta_noise, "theta_noise", nonneg=True)
-    delay = _number(delay, "delay")
+    cur = check_currents(currents)
+    duration = check_number(duration, "duration", positive=True)
+    fs = check_number(fs, "fs", positive=True)
+    noise = check_number(noise, "noise", nonneg=True)
+    theta_noise = check_number(theta_noise, "theta_noise", nonneg=True)
+    delay = check_number(delay, "delay")
     if delay and not (kind.motion_imposed or kind.has_input):
         raise HystdiscError(
             f"a delay between channels needs two channels, a {exp} experiment records one; "
@@ -456,7 +308,7 @@ def generate(
         )
     if not kind.has_input and input_spec is not None:
         raise HystdiscError(f"an input is only used by forced experiments, not {exp}; fix: drop it")
-    n_spikes, spike_size = _check_spikes(spikes, n * len(cur) * max(per_current, 1))
+    n_spikes, spike_size = check_spikes(spikes, n * len(cur) * max(per_current, 1))
     filt = check_prefilter(prefilter, kind)
     t = np.arange(n) / fs
     rng = np.random.default_rng(int(seed))
@@ -512,9 +364,9 @@ def generate(
     if theta0 is None:
         th0 = [0.3 if kind.starts_at_rest else 0.0] * len(cur)
     elif isinstance(theta0, (int, float, np.floating)) and not isinstance(theta0, bool):
-        th0 = [_number(theta0, "theta0")] * len(cur)
+        th0 = [check_number(theta0, "theta0")] * len(cur)
     else:
-        th0 = [_number(v, "theta0") for v in theta0]
+        th0 = [check_number(v, "theta0") for v in theta0]
         if len(th0) != len(cur):
             raise HystdiscError(
                 f"{len(th0)} theta0 values for {len(cur)} currents; fix: give one theta0, or "
@@ -522,7 +374,7 @@ def generate(
             )
     inputs = None
     if kind.has_input:
-        spec = _check_input_spec(input_spec)
+        spec = check_input_spec(input_spec)
         inputs = [make_input(spec, t, rng) for _ in cur]
     structural = None if _is_system(mdl) else _structural(mdl, exp)
     if _is_system(mdl):
@@ -550,23 +402,6 @@ def generate(
     apply_prefilter(runs, filt, source)
     _add_spikes([r.theta for r in runs], n_spikes, spike_size, int(seed))
     return Dataset(runs, exp, source)
-
-
-def _check_spikes(spikes: Any, total: int) -> tuple[int, float]:
-    """``(N, SIZE)`` checked (N whole and at most the samples, SIZE > 0); (0, 0) for None."""
-    if spikes is None:
-        return 0, 0.0
-    try:
-        count, size = spikes
-    except (TypeError, ValueError):
-        raise HystdiscError(
-            f"spikes = {spikes!r} is not (N, SIZE); fix: give e.g. (6, 0.05)"
-        ) from None
-    if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or count < 0:
-        raise HystdiscError(f"spikes: N = {count!r} is invalid; fix: give a whole number >= 0")
-    if count > total:
-        raise HystdiscError(f"spikes: N = {count} exceeds the {total} samples; fix: give fewer")
-    return int(count), _number(size, "spike size", positive=True)
 
 
 def _add_spikes(signals: list[np.ndarray], count: int, size: float, seed: int) -> None:
@@ -653,198 +488,3 @@ def write_dataset(
         }
         runs.append(Run(r.name, r.t, round_significant(r.theta, digits), r.current, **kw))
     return write_csv(Dataset(runs, dataset.experiment, dataset.source), path, force=force)
-
-
-# ----------------------------------------------------------------------------- scenarios
-
-
-def _scenario_error(source: str, problem: str, fix: str) -> HystdiscError:
-    return HystdiscError(f"{source}: {problem}; fix: {fix}")
-
-
-def _effect_params(name: str, ep: Any, source: str) -> dict[str, float]:
-    """One ``[effects.<name>]`` table of a scenario, its values as numbers."""
-    if not isinstance(ep, Mapping):
-        raise _scenario_error(
-            source,
-            f"effects.{name} must be a table",
-            f"write [effects.{name}] and its parameters below it",
-        )
-    return {str(k): _number(v, f"effect {name} parameter {k}") for k, v in ep.items()}
-
-
-def load_scenario(path: str | os.PathLike[str]) -> dict[str, Any]:
-    """Read a scenario TOML file (the settings of ``hystdisc simulate``).
-
-    Keys: ``model`` (family), ``[params]``, ``[effects.<name>]`` tables (an empty table
-    takes the effect's defaults), ``currents``, ``experiment``, ``theta0``, ``duration``,
-    ``fs``, ``noise``, ``theta_noise``, ``delay`` (s), ``seed``, ``encoder_counts``,
-    ``spikes`` (``[N, SIZE]``), ``[prefilter]`` (a rig's ``[filter]`` table), ``drives`` (tables
-    ``{amplitude, frequency}`` or ``"A@f"`` strings), ``[input]``, ``output`` (CSV file
-    name, relative to the scenario file) and the informative ``declared`` (the family a
-    user would declare for these data) and ``description``. Unknown keys are an error.
-
-    Returns
-    -------
-    dict
-        The settings, plus ``path`` (the scenario file) and ``output`` resolved against the
-        scenario's folder. Settings not given are absent (the :func:`generate` defaults
-        apply).
-
-    Examples
-    --------
-    >>> import tempfile, pathlib
-    >>> with tempfile.TemporaryDirectory() as d:
-    ...     p = pathlib.Path(d, "s.toml")
-    ...     _ = p.write_text('model = "dahl"\\noutput = "dahl.csv"\\n[params]\\nrho = 15\\n')
-    ...     sc = load_scenario(p)
-    ...     print(sc["model"], sc["params"], pathlib.Path(sc["output"]).name)
-    dahl {'rho': 15.0} dahl.csv
-    """
-    source = str(path)
-    try:
-        text = Path(path).read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise _scenario_error(source, "file does not exist", "check the path") from None
-    except UnicodeDecodeError as exc:
-        raise _scenario_error(
-            source,
-            f"is not UTF-8 text (byte 0x{exc.object[exc.start]:02x} at offset {exc.start})",
-            "save the scenario as UTF-8 text (TOML)",
-        ) from None
-    except OSError as exc:
-        raise _scenario_error(
-            source, f"cannot be read ({exc.strerror or exc})", "check the path"
-        ) from None
-    sc = normalize_scenario(parse_toml(text, source), source)
-    sc["path"] = source
-    if "output" in sc:
-        sc["output"] = str(Path(path).parent / sc["output"])
-    return sc
-
-
-def normalize_scenario(raw: Mapping[str, Any], source: str = "scenario") -> dict[str, Any]:
-    """Check the keys and value types of a scenario table (see :func:`load_scenario`)."""
-    for key in raw:
-        if key not in SCENARIO_KEYS:
-            raise _scenario_error(
-                source, f"unknown key '{key}'", f"use only {', '.join(SCENARIO_KEYS)}"
-            )
-    sc: dict[str, Any] = {}
-    for key in ("model", "declared", "description", "experiment", "output"):
-        if key in raw:
-            if not isinstance(raw[key], str):
-                raise _scenario_error(source, f"{key} = {raw[key]!r} is not text", "quote it")
-            sc[key] = raw[key]
-    if "output" in sc and (not sc["output"].strip() or "\x00" in sc["output"]):
-        raise _scenario_error(
-            source,
-            f"output = {sc['output']!r} is not a usable file name",
-            'name the CSV file, e.g. output = "dahl.csv"',
-        )
-    params = raw.get("params", {})
-    if not isinstance(params, Mapping):
-        raise _scenario_error(source, "params must be a table", "write [params] then k_s = 158")
-    try:
-        sc["params"] = {str(k): _number(v, f"parameter {k}") for k, v in params.items()}
-        effects = raw.get("effects", {})
-        if isinstance(effects, list):  # effects = ["coulomb", ...] takes the defaults
-            effects = {str(e): {} for e in effects}
-        if not isinstance(effects, Mapping):
-            raise _scenario_error(
-                source, "effects must be a table", "write [effects.coulomb] then f_c = 0.3"
-            )
-        sc["effects"] = {
-            str(name): _effect_params(name, ep, source) for name, ep in effects.items()
-        }
-        if "currents" in raw:
-            sc["currents"] = _check_currents(raw["currents"])
-        for key in ("duration", "fs", "noise", "theta_noise", "delay"):
-            if key in raw:
-                sc[key] = _number(raw[key], key)
-        if "theta0" in raw:
-            v = raw["theta0"]
-            sc["theta0"] = (
-                [_number(x, "theta0") for x in v] if isinstance(v, list) else _number(v, "theta0")
-            )
-        if "spikes" in raw:
-            v = raw["spikes"]
-            if not (isinstance(v, list) and len(v) == 2):
-                raise _scenario_error(
-                    source, f"spikes = {v!r} is not [N, SIZE]", "write spikes = [6, 0.05]"
-                )
-            sc["spikes"] = (v[0], _number(v[1], "spike size", positive=True))
-        for key in ("seed", "encoder_counts"):
-            if key in raw:
-                v = raw[key]
-                if isinstance(v, bool) or not isinstance(v, int):
-                    raise _scenario_error(
-                        source, f"{key} = {v!r} is not a whole number", "give an integer"
-                    )
-                sc[key] = v
-        if "prefilter" in raw:  # checked by generate (simulation.prefilter)
-            sc["prefilter"] = raw["prefilter"]
-        if "drives" in raw:
-            if not isinstance(raw["drives"], list):
-                raise _scenario_error(
-                    source,
-                    "drives must be a list",
-                    'write drives = [{amplitude = 0.3, frequency = 1.0}] or ["0.3@1.0"]',
-                )
-            sc["drives"] = [parse_drive(d) for d in raw["drives"]]
-        if "input" in raw:
-            sc["input"] = _check_input_spec(raw["input"])
-    except HystdiscError as exc:
-        msg = str(exc)
-        raise HystdiscError(msg if msg.startswith(source) else f"{source}: {msg}") from None
-    return sc
-
-
-def scenario_model(scenario: Mapping[str, Any]) -> Model:
-    """The :class:`~hystdisc.models.Model` a scenario describes (demo defaults if unset)."""
-    if "model" not in scenario:
-        raise HystdiscError(
-            f'{scenario.get("path", "scenario")}: no model given; fix: add model = "bouc-wen" '
-            "(or pass --model)"
-        )
-    return Model(scenario["model"], scenario.get("params") or {}, scenario.get("effects") or {})
-
-
-def generate_from_scenario(scenario: Mapping[str, Any]) -> Dataset:
-    """Generate the dataset a scenario (from :func:`load_scenario`) describes.
-
-    Examples
-    --------
-    >>> ds = generate_from_scenario({"model": "lugre", "currents": [0, 1], "duration": 1.0})
-    >>> len(ds), ds[0].n
-    (2, 1000)
-    """
-    model = scenario_model(scenario)
-    kw: dict[str, Any] = {}
-    for key in (
-        "experiment",
-        "currents",
-        "duration",
-        "fs",
-        "theta0",
-        "noise",
-        "seed",
-        "encoder_counts",
-        "drives",
-        "theta_noise",
-        "delay",
-        "spikes",
-        "prefilter",
-    ):
-        if scenario.get(key) is not None:
-            kw[key] = scenario[key]
-    if scenario.get("input") is not None:
-        kw["input_spec"] = scenario["input"]
-    try:
-        return generate(model, **kw)
-    except HystdiscError as exc:
-        where = scenario.get("path")
-        msg = str(exc)
-        raise HystdiscError(
-            f"{where}: {msg}" if where and not msg.startswith(where) else msg
-        ) from None

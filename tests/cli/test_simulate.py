@@ -14,7 +14,8 @@ from hystdisc.cli import main
 from hystdisc.data import read_csv
 from hystdisc.errors import HystdiscError
 from hystdisc.models import Model
-from hystdisc.simulation.synth import generate, generate_from_scenario, load_scenario
+from hystdisc.simulation.scenarios import generate_from_scenario, load_scenario
+from hystdisc.simulation.synth import generate
 
 REPO = Path(__file__).resolve().parents[2]
 DATA_SYNTH = REPO / "data_synth"

@@ -13,7 +13,7 @@ import pytest
 from hystdisc.data import EXPERIMENTS, Dataset, load, read_rig
 from hystdisc.errors import HystdiscError, HystdiscWarning
 from hystdisc.results import Results
-from hystdisc.simulation.synth import generate_from_scenario, load_scenario
+from hystdisc.simulation.scenarios import generate_from_scenario, load_scenario
 
 from ..fuzz import check_dataset, check_error
 

@@ -17,7 +17,8 @@ from hystdisc.cli import main
 from hystdisc.data import load
 from hystdisc.models import FAMILIES
 from hystdisc.results import Results
-from hystdisc.simulation.synth import generate, load_scenario
+from hystdisc.simulation.scenarios import load_scenario
+from hystdisc.simulation.synth import generate
 
 ROOT = Path(__file__).resolve().parents[2]
 SYNTH = ROOT / "data_synth"

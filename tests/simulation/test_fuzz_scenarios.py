@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 from hystdisc.data import EXPERIMENTS, Dataset
 from hystdisc.errors import HystdiscError
 from hystdisc.models import FAMILIES, Model
-from hystdisc.simulation.synth import (
+from hystdisc.simulation.scenarios import (
     SCENARIO_KEYS,
     generate_from_scenario,
     load_scenario,

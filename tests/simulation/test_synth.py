@@ -8,14 +8,8 @@ import pytest
 from hystdisc.data import read_csv
 from hystdisc.errors import HystdiscError
 from hystdisc.models import Model
-from hystdisc.simulation.synth import (
-    DEFAULT_INPUT,
-    generate,
-    make_input,
-    parse_drive,
-    round_significant,
-    write_dataset,
-)
+from hystdisc.simulation.synth import generate, make_input, round_significant, write_dataset
+from hystdisc.simulation.synth_checks import DEFAULT_INPUT, parse_drive
 
 
 def test_release_layout_and_theta0():
