@@ -5,6 +5,7 @@ into and returns the :class:`~matplotlib.figure.Figure`; without one it opens a 
 figure. Nothing here calls ``plt.show()`` or changes ``rcParams``. One module per kind of
 figure: :mod:`~hystdisc.plotting.loops`, :mod:`~hystdisc.plotting.fits`,
 :mod:`~hystdisc.plotting.selection`, :mod:`~hystdisc.plotting.spectrum`,
+:mod:`~hystdisc.plotting.residuals`,
 :mod:`~hystdisc.plotting.families`, :mod:`~hystdisc.plotting.currents`,
 :mod:`~hystdisc.plotting.control`.
 
@@ -25,6 +26,7 @@ from hystdisc.plotting.currents import plot_current_laws
 from hystdisc.plotting.families import plot_family_comparison
 from hystdisc.plotting.fits import plot_fit, plot_runs
 from hystdisc.plotting.loops import loops_figure, plot_loops
+from hystdisc.plotting.residuals import plot_residual_map
 from hystdisc.plotting.selection import plot_inclusion, plot_selection_path
 from hystdisc.plotting.spectrum import plot_residual_spectrum
 from hystdisc.plotting.studies import plot_study
@@ -37,6 +39,7 @@ __all__ = [
     "plot_fit",
     "plot_inclusion",
     "plot_loops",
+    "plot_residual_map",
     "plot_residual_spectrum",
     "plot_runs",
     "plot_selection_path",

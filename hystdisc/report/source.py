@@ -100,8 +100,9 @@ class ReportData:
     raw : list of dict
         Each run as read: ``name, current, n`` (samples), ``t`` and ``y`` (decimated).
     runs : dict
-        The runs as fitted: ``names, currents`` and, per run, ``t, y`` and ``mask`` (the
-        samples in the fit).
+        The runs as fitted: ``names, currents`` and, per run, ``t, y``, ``mask`` (the
+        samples in the fit) and ``theta`` (the angle or imposed motion, for the residual
+        map; absent from reports written before it).
     fits : dict
         Each fit drawn (families, ``discovered``, ``final``): ``label`` and ``rms``.
     signals : list of dict
@@ -286,6 +287,7 @@ def report_data(disc, dataset: Dataset) -> ReportData:
         "t": [np.asarray(t, dtype=float) for t in fd.t],
         "y": [np.asarray(y, dtype=float) for y in fd.y],
         "mask": [np.asarray(m, dtype=bool) for m in fd.mask],
+        "theta": [_drawn(x) for x in fd.theta],
     }
     signals = [
         {

@@ -3,6 +3,8 @@ residual spectrum)."""
 
 from __future__ import annotations
 
+import numpy as np
+
 from hystdisc.registry import effect_names, get_effect
 from hystdisc.report.markup import ci_text, color_of, new_figure, num
 from hystdisc.results import ResidualSummary
@@ -173,6 +175,31 @@ class StageSections:
         if d.unexplained:
             self.p("Unexplained: " + (d.unexplained_text or "structure remains"), cls="bad")
         self._spectrum_figure(plot_residual_spectrum)
+        self._residual_map()
+
+    def _residual_map(self) -> None:
+        """Where the model misses: the residual against displacement and velocity."""
+        from hystdisc.plotting.residuals import plot_residual_map
+
+        runs, after = self.rd.runs, self.rd.spectrum.get("after")
+        if "theta" not in runs or after is None:
+            return  # a report written before the map
+        disp, vel = [], []
+        for t, x, m in zip(runs["t"], runs["theta"], runs["mask"], strict=True):
+            x = np.asarray(x, dtype=float)
+            disp.append(x[m])
+            vel.append(np.gradient(x, np.asarray(t, dtype=float))[m])
+        fig, axes = new_figure(1, 2, 10, 3.6)
+        plot_residual_map(
+            after["residuals"], disp, vel, runs["currents"], self.rd.noise_std, axes=axes[0]
+        )
+        self.figure(
+            fig,
+            "Where the model misses: the residual of "
+            + after["label"]
+            + " against displacement and velocity, its mean in bins per current; grey: "
+            "the measurement's floor (one standard deviation).",
+        )
 
     def _spectrum_figure(self, plot_residual_spectrum) -> None:
         sp, res = self.rd.spectrum, self.res.residual

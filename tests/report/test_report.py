@@ -501,3 +501,14 @@ def html_unescape(text: str) -> str:
     import html
 
     return html.unescape(text)
+
+
+def test_where_the_model_misses_is_shown_against_the_floor(families_report):
+    """Issue 35 item 4: the residual against displacement and velocity, per current, over
+    the measurement's floor, in the closing section."""
+    _, _, path = families_report
+    text = path.read_text(encoding="utf-8")
+    closing = text[text.index('id="closing"') :]
+    assert "Where the model misses" in closing
+    assert "against displacement and velocity" in closing
+    assert "measurement&#x27;s floor" in closing or "measurement's floor" in closing
