@@ -15,7 +15,7 @@ from hystdisc import Discovery
 from hystdisc.cli import main
 from hystdisc.closing.shift import shifted
 from hystdisc.data import load
-from hystdisc.models import Model
+from hystdisc.models import Model, get_family
 from hystdisc.simulation.synth import generate
 
 NOISE = 1e-3
@@ -106,7 +106,8 @@ def test_the_restart_fits_a_family_once_per_shift_and_only_for_a_shift_above_the
     # a fit in z_sat units is rescaled for a model in torque units
     bw = {"alpha_1": 2.0, "alpha_2": 1.0, "delta": 3.0, "beta": 2.0, "gamma": 1.0, "n": 1.0}
     zsat = shift_restart(data, lambda ds, f: NS(params={**bw, "k_s": 150.0}, par=NS(norm="z_sat")))
-    start = zsat("offset", {"theta_off": 0.02}, NS(family=NS(name="bouc-wen"), norm="alpha_1"))
+    bouc_wen = NS(family=get_family("bouc-wen"), norm="alpha_1")
+    start = zsat("offset", {"theta_off": 0.02}, bouc_wen)
     assert start["alpha_1"] == 1.0 and start["delta"] == 6.0 and start["alpha_2"] == 0.5
     assert start["k_s"] == 150.0 and start["theta_off"] == 0.02
 
