@@ -176,16 +176,23 @@ def inclusion(
     opt = ps.EnsembleOptimizer(
         opt=ps.STLSQ(threshold=threshold, alpha=1e-10, unbias=True), bagging=True, n_models=n_models
     )
-    with _WARN_LOCK, warnings.catch_warnings(), _global_seed(seed):
-        warnings.simplefilter("ignore")
-        opt.fit(F / sc, y / ys)
+    seeded_fit(opt, F / sc, y / ys, seed)
     coefs = np.array([np.asarray(c).ravel() for c in opt.coef_list])
     p = (np.abs(coefs) > 0).mean(axis=0)
     return dict(zip(names, map(float, p), strict=True))
 
 
+def seeded_fit(opt, X: np.ndarray, y: np.ndarray, seed: int):
+    """``opt.fit(X, y)`` for a pysindy optimizer that draws from numpy's global generator
+    (``EnsembleOptimizer``): seeded with ``seed``, under the module's lock, warnings
+    silenced, and the generator's state restored afterwards (:func:`global_seed`)."""
+    with _WARN_LOCK, warnings.catch_warnings(), global_seed(seed):
+        warnings.simplefilter("ignore")
+        return opt.fit(X, y)
+
+
 @contextmanager
-def _global_seed(seed: int) -> Iterator[None]:
+def global_seed(seed: int) -> Iterator[None]:
     """numpy's global generator seeded with ``seed`` inside the block, its state as it was
     before the block afterwards."""
     saved = np.random.get_state()  # noqa: NPY002 - pysindy's ensemble draws from it

@@ -1,0 +1,356 @@
+"""An open library for the residual: sparse regression where the catalogue ends.
+
+When the catalogued effects leave structure in the residual, the equation-error residual
+of the model (``target - T(theta, theta_dot, z, i)``, the model's own terms projected out)
+is regressed on a broad library of named candidate forces in the states and the inputs
+(:func:`candidate_library`):
+
+* the catalogue's torque terms the model does not have (:data:`~hystdisc.models.TORQUE_TERMS`);
+* a constant, its current slope and a bias per current level (``bias[i=0.75 A]``);
+* polynomials (``theta^2``, ``theta_dot^3``), ``|theta_dot|^m`` forms and
+  ``tanh(theta_dot/v0)`` at several velocity scales;
+* terms that differ in tension and compression (``[theta_dot>0]``,
+  ``theta_dot*[theta_dot>0]``, ``theta*[theta>0]``);
+* the output of a play (backlash) operator of the motion against the motion, at several
+  widths (``play(theta, r)-theta``), and the velocity the play loses;
+* products of the main ones with the current (``i*...``).
+
+Terms are selected by pysindy's forward regression (FROLS: orthogonal least squares, robust
+to a library of strongly correlated candidates) along its path scored by BIC (effective
+sample size of the record), and kept when they are stable: selected in at least
+:data:`MIN_INCLUSION` of bootstrap refits (pysindy's ``EnsembleOptimizer``, stability
+selection). What is selected is mapped to a catalogued effect whose torque terms it
+covers (:attr:`ResidualTerms.effects`: the loop tries these by output error); the rest
+is a *discovered effect*, reported with its equation. Nothing here is accepted: a term
+set is evidence, and only a refit that predicts held-out conditions better is a verdict.
+
+Examples
+--------
+>>> rng = np.random.default_rng(0)
+>>> t = np.arange(4000) / 1000.0
+>>> w = np.cos(2 * np.pi * t)
+>>> round(float(np.mean(play(np.sin(2 * np.pi * t), 0.1) - np.sin(2 * np.pi * t))), 3)
+0.0
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import pysindy as ps
+from numba import njit
+
+from hystdisc.discovery.selection import seeded_fit
+from hystdisc.models import EFFECTS, SIGN_EPS, TORQUE_TERMS, TermModel
+from hystdisc.registry import get_experiment
+from hystdisc.simulation import integrate_z
+from hystdisc.stats import bic
+
+#: A term is kept when it is selected in at least this share of the bootstrap refits.
+MIN_INCLUSION = 0.8
+#: Bootstrap refits of the stability selection.
+N_MODELS = 40
+#: Widths of the play (backlash) operator, in units of each run's motion amplitude.
+PLAY_WIDTHS = (0.02, 0.05, 0.1)
+#: Velocity scales of the ``tanh`` terms, in units of the largest ``|theta_dot|``.
+TANH_SCALES = (0.02, 0.1)
+#: Rows of the regression at most (every k-th row of a longer record).
+MAX_ROWS = 6000
+#: At most this many terms along the forward path.
+MAX_TERMS = 8
+
+
+@njit(cache=True)
+def play(x, r):  # pragma: no cover - compiled
+    """The play (backlash) operator: ``y`` follows ``x`` only once ``|x - y| > r``."""
+    y = np.empty_like(x)
+    if x.size == 0:
+        return y
+    y[0] = x[0]
+    for k in range(1, x.size):
+        y[k] = min(max(y[k - 1], x[k] - r), x[k] + r)
+    return y
+
+
+@dataclass
+class DiscoveredTerm:
+    """One term the residual regression selected.
+
+    Attributes
+    ----------
+    name : str
+        The candidate's name (its formula in the states and inputs).
+    coefficient : float
+        Its coefficient in the output's units (torque or force per the term's unit).
+    inclusion : float
+        Share of the bootstrap refits that selected it.
+    effect : str
+        The catalogued effect whose terms it belongs to ("" for none: discovered).
+    """
+
+    name: str
+    coefficient: float
+    inclusion: float
+    effect: str = ""
+
+    def to_dict(self) -> dict:
+        """The ``results.json`` form."""
+        return {
+            "name": self.name,
+            "coefficient": self.coefficient,
+            "inclusion": self.inclusion,
+            "effect": self.effect,
+        }
+
+
+@dataclass
+class ResidualTerms:
+    """What the open library found in a residual.
+
+    Attributes
+    ----------
+    terms : list of DiscoveredTerm
+        The stable terms, largest contribution first.
+    explained : float
+        Share of the residual's sum of squares (the model's terms projected out) the
+        selected terms explain together.
+    effects : list of str
+        Catalogued effects whose torque terms are all among the selected.
+    candidates : int
+        Candidate terms in the library.
+    """
+
+    terms: list[DiscoveredTerm] = field(default_factory=list)
+    explained: float = 0.0
+    effects: list[str] = field(default_factory=list)
+    candidates: int = 0
+
+    @property
+    def discovered(self) -> list[DiscoveredTerm]:
+        """The selected terms no catalogued effect accounts for."""
+        return [t for t in self.terms if not t.effect]
+
+    def equation(self) -> str:
+        """The discovered effect as an equation of the extra torque (empty: none).
+
+        Examples
+        --------
+        >>> ResidualTerms([DiscoveredTerm("[theta_dot>0]", 0.05, 1.0)]).equation()
+        'T_extra = 0.05*[theta_dot>0]'
+        """
+        found = self.discovered
+        if not found:
+            return ""
+        parts = [f"{t.coefficient:+.4g}*{t.name}" for t in found]
+        text = " ".join(parts).lstrip("+")
+        return "T_extra = " + text.replace(" +", " + ").replace(" -", " - ")
+
+    def summary(self) -> str:
+        """Readable lines: the selected terms, their inclusion and what they map to."""
+        if not self.terms:
+            return f"open library ({self.candidates} candidates): no stable term"
+        lines = [
+            f"open library ({self.candidates} candidates): {len(self.terms)} stable terms "
+            f"explain {self.explained:.0%} of the residual"
+        ]
+        for t in self.terms:
+            where = f" -> {t.effect}" if t.effect else " (discovered)"
+            lines.append(f"  {t.name}: {t.coefficient:.4g}, inclusion {t.inclusion:.2f}{where}")
+        if self.discovered:
+            lines.append("  " + self.equation())
+        return "\n".join(lines)
+
+    def to_dict(self) -> dict:
+        """The ``results.json`` form."""
+        return {
+            "terms": [t.to_dict() for t in self.terms],
+            "explained": self.explained,
+            "effects": list(self.effects),
+            "candidates": self.candidates,
+            "equation": self.equation(),
+        }
+
+
+Signals = tuple[np.ndarray, np.ndarray, np.ndarray, float, float]
+Column = Callable[[np.ndarray, np.ndarray, np.ndarray, float, np.ndarray], np.ndarray]
+
+
+def _open_terms(levels: Sequence[float], w_max: float) -> dict[str, Column]:
+    """The candidates beyond the catalogue: ``name -> f(theta, theta_dot, z, i, t)``."""
+    pos = lambda a: (a > 0).astype(float)  # noqa: E731
+    out: dict[str, Column] = {
+        "i": lambda th, w, z, i, t: np.full(th.size, i),
+        "theta^2": lambda th, w, z, i, t: th * th,
+        "theta_dot^3": lambda th, w, z, i, t: w**3,
+        "sign(theta_dot)*|theta_dot|^0.5": lambda th, w, z, i, t: np.sign(w) * np.sqrt(np.abs(w)),
+        "[theta_dot>0]": lambda th, w, z, i, t: pos(w),
+        "theta_dot*[theta_dot>0]": lambda th, w, z, i, t: w * pos(w),
+        "theta*[theta>0]": lambda th, w, z, i, t: th * pos(th),
+        "i*[theta_dot>0]": lambda th, w, z, i, t: i * pos(w),
+    }
+    for lv in levels[2:]:  # with "1" and "i": any bias per level
+        out[f"bias[i={lv:g} A]"] = lambda th, w, z, i, t, lv=lv: np.full(
+            th.size, float(abs(i - lv) <= 1e-9 * max(1.0, abs(lv)))
+        )
+    for s in TANH_SCALES:
+        v0 = s * w_max
+        out[f"tanh(theta_dot/{v0:.3g})"] = lambda th, w, z, i, t, v0=v0: np.tanh(w / v0)
+        out[f"i*tanh(theta_dot/{v0:.3g})"] = lambda th, w, z, i, t, v0=v0: i * np.tanh(w / v0)
+    for r in PLAY_WIDTHS:
+
+        def gap(th, w, z, i, t, r=r):
+            amp = 0.5 * float(np.ptp(th)) if th.size else 0.0
+            return play(np.ascontiguousarray(th, dtype=np.float64), r * amp) - th
+
+        def lost(th, w, z, i, t, r=r):
+            g = gap(th, w, z, i, t, r)
+            return np.gradient(g, t) if th.size > 1 else np.zeros(th.size)
+
+        out[f"play(theta,{r:g}A)-theta"] = gap
+        out[f"d/dt[play(theta,{r:g}A)-theta]"] = lost
+        out[f"i*d/dt[play(theta,{r:g}A)-theta]"] = lambda th, w, z, i, t, f=lost: (
+            i * f(th, w, z, i, t)
+        )
+    return out
+
+
+def candidate_library(eq, tm: TermModel) -> tuple[list[str], np.ndarray, np.ndarray, np.ndarray]:
+    """The residual to explain and the candidate columns (see the module docstring).
+
+    Parameters
+    ----------
+    eq : EqData
+        Equation-error data of the runs.
+    tm : TermModel
+        The model in term form (its torque terms and hysteresis state).
+
+    Returns
+    -------
+    names : list of str
+        The candidates.
+    G : ndarray (rows, candidates)
+        Their values on the equation's rows, all runs.
+    r : ndarray
+        The equation residual ``target - T``.
+    A : ndarray
+        The model's own columns (its torque terms, and the inertia where identifiable).
+    """
+    if tm.has_state:
+        z = integrate_z(tm.hysteresis_vector(), tm.n, eq.t, eq.theta_dot, SIGN_EPS)
+    else:
+        z = [np.zeros_like(t) for t in eq.t]
+    own = [k for k, v in tm.torque.items() if v != 0.0]
+    coefs = np.array([tm.torque[k] for k in own])
+    catalogue = [k for k in TORQUE_TERMS if k not in own and k != "z"]
+    levels = sorted({float(c) for c in eq.currents})
+    w_max = max(
+        float(np.max(np.abs(w[m]))) if m.any() else 0.0
+        for w, m in zip(eq.theta_dot, eq.rows, strict=True)
+    )
+    opened = _open_terms(levels, max(w_max, 1e-300))
+    names = catalogue + list(opened)
+    inertia = get_experiment(eq.experiment).inertia_identifiable
+    A_rows, G_rows, res = [], [], []
+    for k in range(len(eq.t)):
+        m = eq.rows[k]
+        t, th, w, zk = eq.t[k], eq.theta[k], eq.theta_dot[k], z[k]
+        i = float(eq.currents[k])
+        A = np.column_stack([tm.term(n, th, w, zk, i)[m] for n in own] or [np.zeros(int(m.sum()))])
+        pred = A @ coefs if own else np.zeros(int(m.sum()))
+        if inertia:
+            pred = pred + tm.J * eq.theta_ddot[k][m]
+            A = np.column_stack([eq.theta_ddot[k][m], A])
+        cols = [np.broadcast_to(tm.term(n, th, w, zk, i), th.shape)[m] for n in catalogue]
+        cols += [np.asarray(f(th, w, zk, i, t), dtype=float)[m] for f in opened.values()]
+        A_rows.append(A)
+        G_rows.append(np.column_stack(cols))
+        res.append(eq.target[k][m] - pred)
+    return names, np.vstack(G_rows), np.concatenate(res), np.vstack(A_rows)
+
+
+def stable_terms(
+    G: np.ndarray, r: np.ndarray, names: Sequence[str], k: int, seed: int
+) -> dict[str, float]:
+    """Stability selection: the share of bootstrap refits (pysindy's ``EnsembleOptimizer``
+    around a ``k``-term forward regression, FROLS) that select each term."""
+    opt = ps.EnsembleOptimizer(
+        opt=ps.FROLS(max_iter=k, alpha=1e-8, unbias=True), bagging=True, n_models=N_MODELS
+    )
+    seeded_fit(opt, G, r / (np.sqrt(np.mean(r * r)) or 1.0), seed)
+    coefs = np.array([np.asarray(c).ravel() for c in opt.coef_list])
+    return dict(zip(names, map(float, (np.abs(coefs) > 0).mean(axis=0)), strict=True))
+
+
+def regress_residual(eq, tm: TermModel, seed: int = 0) -> ResidualTerms:
+    """The stable terms of the open library in the model's equation residual.
+
+    Parameters
+    ----------
+    eq : EqData
+        Equation-error data of the runs.
+    tm : TermModel
+        The fitted model in term form (``OEFit.term_part``).
+    seed : int
+        Seed of the bootstrap refits.
+
+    Returns
+    -------
+    ResidualTerms
+    """
+    names, G, r, A = candidate_library(eq, tm)
+    n_all = r.size
+    if n_all > MAX_ROWS:  # neighbouring rows say the same (n_eff counts what they say)
+        step = int(np.ceil(n_all / MAX_ROWS))
+        G, r, A = G[::step], r[::step], A[::step]
+    q, _ = np.linalg.qr(A)
+    r_perp = r - q @ (q.T @ r)
+    Gp = G - q @ (q.T @ G)
+    sc = np.sqrt((Gp**2).mean(axis=0))
+    usable = sc > 1e-9 * max(float(sc.max()), 1e-300)
+    names = [n for n, u in zip(names, usable, strict=True) if u]
+    Gp, sc = Gp[:, usable], sc[usable]
+    rss0 = float(r_perp @ r_perp)
+    out = ResidualTerms(candidates=len(names))
+    if rss0 <= 0.0 or not names:
+        return out
+    n = r_perp.size
+    n_eff = min(float(eq.n_eff(n_all)), float(n))
+    k_max = min(MAX_TERMS, len(names))
+    frols = ps.FROLS(normalize_columns=False, max_iter=k_max, alpha=1e-8, unbias=True)
+    frols.fit(Gp / sc, r_perp / np.sqrt(rss0 / n))
+    # the forward path: BIC of each number of terms, refitted by least squares
+    best_k, best_b = 0, bic(rss0, n, 0, n_eff=n_eff)
+    for k, coef in enumerate(frols.history_[:k_max], start=1):
+        support = np.abs(np.asarray(coef).ravel()) > 0
+        c, *_ = np.linalg.lstsq(Gp[:, support], r_perp, rcond=None)
+        e = r_perp - Gp[:, support] @ c
+        b = bic(float(e @ e), n, int(support.sum()), n_eff=n_eff)
+        if b < best_b - 1e-9:
+            best_k, best_b = k, b
+    if best_k == 0:
+        return out
+    support = np.abs(np.asarray(frols.history_[best_k - 1]).ravel()) > 0
+    probs = stable_terms(Gp / sc, r_perp, names, best_k, seed)
+    keep = support & np.array([probs[nm] >= MIN_INCLUSION for nm in names])
+    if not keep.any():
+        return out
+    c, *_ = np.linalg.lstsq(Gp[:, keep], r_perp, rcond=None)
+    e = r_perp - Gp[:, keep] @ c
+    kept = [nm for nm, k in zip(names, keep, strict=True) if k]
+    effects = [
+        name
+        for name, eff in EFFECTS.items()
+        if eff.terms and not eff.structural and all(t in kept for t in eff.terms)
+    ]
+    owner = {t: name for name in effects for t in EFFECTS[name].terms}
+    size = np.abs(c) * np.sqrt((Gp[:, keep] ** 2).mean(axis=0))
+    order = np.argsort(-size)
+    out.terms = [
+        DiscoveredTerm(kept[j], float(c[j]), float(probs[kept[j]]), owner.get(kept[j], ""))
+        for j in order
+    ]
+    out.explained = 1.0 - float(e @ e) / rss0
+    out.effects = effects
+    return out
