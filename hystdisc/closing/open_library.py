@@ -304,6 +304,77 @@ def regress_residual(eq, tm: TermModel, seed: int = 0) -> ResidualTerms:
     if n_all > MAX_ROWS:  # neighbouring rows say the same (n_eff counts what they say)
         step = int(np.ceil(n_all / MAX_ROWS))
         G, r, A = G[::step], r[::step], A[::step]
+    return select_terms(names, G, r, A, min(float(eq.n_eff(n_all)), float(r.size)), seed)
+
+
+def regress_output_residual(data, fit, seed: int = 0) -> ResidualTerms:
+    """The stable terms of the open library in the output-error residual of a test whose
+    output is the force (driven: motion imposed), any family, state-space ones included.
+
+    The residual ``measured - simulated`` is a force; the candidates are evaluated on the
+    motion (no hysteretic state: a state-space family's is not the term form's), and the
+    model's own sensitivities at its optimum (the fitter's Jacobian) are projected out, so
+    that what a refit of the model itself would absorb is not credited to a new term.
+
+    Parameters
+    ----------
+    data : FitData
+        The fit's data (``torque`` output).
+    fit : OEFit
+        The fit at its optimum.
+    seed : int
+        Seed of the bootstrap refits.
+
+    Returns
+    -------
+    ResidualTerms
+    """
+    from hystdisc.fitting import OutputErrorFitter
+
+    if data.exp.output != "torque":
+        raise ValueError("the output-error library needs a force output (a driven test)")
+    par = fit.par.like(dict(fit.params), fit.par.effects)  # at the optimum
+    v = np.concatenate([par.x0, np.asarray(fit.nuisance, dtype=float).ravel()])
+    fitter = OutputErrorFitter(data, par)
+    with np.errstate(all="ignore"):
+        r = -fitter.residuals(v)  # measured - simulated
+        J = fitter.jacobian(v)
+    levels = sorted({float(c) for c in data.currents})
+    w_max = 0.0
+    motion = []
+    for k in range(data.n_runs):
+        t = np.asarray(data.t[k], dtype=float)
+        th = np.asarray(data.theta[k], dtype=float)
+        w = np.gradient(th, t)
+        motion.append((t, th, w))
+        w_max = max(w_max, float(np.max(np.abs(w[data.mask[k]]))))
+    opened = _open_terms(levels, max(w_max, 1e-300))
+    catalogue = [k for k in TORQUE_TERMS if "z" not in k and "^m" not in k]
+    names = catalogue + list(opened)
+    cols = []
+    for k, (t, th, w) in enumerate(motion):
+        m, i = data.mask[k], float(data.currents[k])
+        z = np.zeros_like(th)
+        tm = TermModel({})
+        block = [np.broadcast_to(tm.term(n, th, w, z, i), th.shape)[m] for n in catalogue]
+        block += [np.asarray(f(th, w, z, i, t), dtype=float)[m] for f in opened.values()]
+        cols.append(np.column_stack(block))
+    G = np.vstack(cols)
+    n_all, n_eff = r.size, float(data.n_eff())
+    if n_all > MAX_ROWS:
+        step = int(np.ceil(n_all / MAX_ROWS))
+        G, r, J = G[::step], r[::step], J[::step]
+    A = J[:, np.any(J != 0.0, axis=0) & np.all(np.isfinite(J), axis=0)]
+    return select_terms(names, G, r, A, min(n_eff, float(r.size)), seed)
+
+
+def select_terms(
+    names: Sequence[str], G: np.ndarray, r: np.ndarray, A: np.ndarray, n_eff: float, seed: int
+) -> ResidualTerms:
+    """Forward regression of ``r`` on the columns ``G`` named ``names``, the span of
+    ``A`` (the model's own columns) projected out of both; BIC along the path with
+    ``n_eff`` effective samples, then stability selection (see the module docstring)."""
+    names = list(names)
     q, _ = np.linalg.qr(A)
     r_perp = r - q @ (q.T @ r)
     Gp = G - q @ (q.T @ G)
@@ -316,7 +387,6 @@ def regress_residual(eq, tm: TermModel, seed: int = 0) -> ResidualTerms:
     if rss0 <= 0.0 or not names:
         return out
     n = r_perp.size
-    n_eff = min(float(eq.n_eff(n_all)), float(n))
     k_max = min(MAX_TERMS, len(names))
     frols = ps.FROLS(normalize_columns=False, max_iter=k_max, alpha=1e-8, unbias=True)
     frols.fit(Gp / sc, r_perp / np.sqrt(rss0 / n))

@@ -16,7 +16,12 @@ import numpy as np
 import pytest
 
 from hystdisc import Discovery
-from hystdisc.closing.open_library import MIN_INCLUSION, play, regress_residual
+from hystdisc.closing.open_library import (
+    MIN_INCLUSION,
+    play,
+    regress_output_residual,
+    regress_residual,
+)
 from hystdisc.data import Dataset, Run
 from hystdisc.models import Model
 from hystdisc.simulation.synth import generate
@@ -28,19 +33,37 @@ NOISE = 0.01
 STEP = 0.05
 
 
-def _driven(seed: int, effects: dict | None = None) -> Dataset:
-    truth = Model(FAMILY, {"k_s": 0.0}, effects=effects or {})
+def _driven(seed: int, effects: dict | None = None, family: str = FAMILY) -> Dataset:
+    truth = Model(family, {"k_s": 0.0}, effects=effects or {})
     return generate(
         truth, experiment="driven", currents=(0, 0.5, 1), drives=DRIVES, duration=4,
         noise=NOISE, seed=seed,
     )  # fmt: skip
 
 
-def _found(data: Dataset):
+def _found(data: Dataset, output: bool = False, family: str = FAMILY):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        d = Discovery(model=FAMILY, close_loop=False).fit(data)
-    return regress_residual(d.eq_data_, d.family_fits_[FAMILY].term_part, seed=0)
+        d = Discovery(model=family, close_loop=False).fit(data)
+    fit = d.family_fits_[family]
+    if output:
+        return regress_output_residual(d.fit_data_, fit, seed=0)
+    return regress_residual(d.eq_data_, fit.term_part, seed=0)
+
+
+def _with_step(data: Dataset) -> Dataset:
+    """``data`` with an asymmetric yield: a force step where the velocity is positive."""
+    runs = [
+        Run(
+            r.name,
+            r.t,
+            r.theta,
+            r.current,
+            torque=r.torque + STEP * (np.gradient(r.theta, r.t) > 0),
+        )
+        for r in data.runs
+    ]
+    return Dataset(runs, "driven", "asymmetric yield")
 
 
 def test_nothing_in_the_true_models_residual():
@@ -68,6 +91,17 @@ def test_an_asymmetric_yield_the_catalogue_lacks_is_discovered():
     assert top.inclusion >= MIN_INCLUSION
     assert "[theta_dot>0]" in found.equation()
     assert found.explained > 0.5
+
+
+@pytest.mark.parametrize("family", [FAMILY, "tanh"])
+def test_the_output_error_residual_of_any_family(family):
+    """The force residual of a driven test, the model's own sensitivities projected out:
+    the step alone is found, for a term family and a state-space one (which has no
+    equation-error form); the true model's residual gives nothing."""
+    found = _found(_with_step(_driven(3, family=family)), output=True, family=family)
+    assert [t.name for t in found.terms][:1] == ["[theta_dot>0]"]
+    assert found.terms[0].coefficient == pytest.approx(STEP, rel=0.1)
+    assert _found(_driven(3, family=family), output=True, family=family).terms == []
 
 
 def test_a_catalogued_effect_is_named():
