@@ -83,7 +83,7 @@ from hystdisc.closing.residual import (
     natural_frequency,
 )
 from hystdisc.closing.scores import EffectScore, score_effects, wald_chi2
-from hystdisc.closing.structural import refit_structural, score_structural
+from hystdisc.closing.structural import StructuralRefit, refit_structural, score_structural
 from hystdisc.data.envelope import Envelope
 from hystdisc.errors import HystdiscError, HystdiscWarning
 from hystdisc.faults import Failures, reason_of
@@ -362,16 +362,20 @@ class _Round:
         # the held-out error is computed below, only for a refit that passes every other
         # test: a rejected refit's folds (a Spencer refit's: 100 s on the MR damper set)
         # would not change its verdict
+        structural = None
         with np.errstate(all="ignore"):
             if s.starts is not None:  # a structural effect, from its own starts
-                new = refit_structural(self.data, cur, s.name, s.starts, self.max_nfev, False)
+                structural = refit_structural(
+                    self.data, cur, s.name, s.starts, self.max_nfev, False
+                )
+                new = structural.fit
             else:
                 more = None if start is not None or self.stage1 is None else self.stage1
                 new = refit_with(
                     self.data, cur, s.name, s.estimate, self.max_nfev, False, start,
                     self.good_rms, fallback=None if more is None else (lambda: more(s)),
                 )  # fmt: skip
-        new, step = self._judge(s, new)
+        new, step = self._judge(s, new, structural)
         if restarted:
             step["restarted"] = True
         fits_only = step["_improves"] and step["_significant"] and step["admissible"]
@@ -392,7 +396,9 @@ class _Round:
         if old is None or (step["_ok"] and (old[1]["bic_after"] is None or new.bic < old[0].bic)):
             self.results[s.name] = (new, step)
 
-    def _judge(self, s: EffectScore, new: OEFit) -> tuple[OEFit, dict]:
+    def _judge(
+        self, s: EffectScore, new: OEFit, structural: StructuralRefit | None = None
+    ) -> tuple[OEFit, dict]:
         """The record of the refit ``new`` of the current model plus ``s``'s effect (and
         ``new`` with its held-out error when every other test passes)."""
         cur = self.current
@@ -433,9 +439,12 @@ class _Round:
         gain = cur.rss - new.rss if ok else 0.0
         share = gain / excess if excess > 0 else 1.0
         step["excess_share"] = float(share)
-        if "starts" in new.extra:  # a multi-start refit: how the starts ended
-            step["starts"] = new.extra["starts"]
-            step["starts_spread"] = new.extra.get("starts_spread")
+        if structural is not None:  # a multi-start refit: how the starts ended
+            step["starts"] = [
+                {f"{o.parameter}_start": o.start, o.parameter: o.value, "rms": o.rms, "bic": o.bic}
+                for o in structural.starts
+            ]
+            step["starts_spread"] = structural.spread
         step["_improves"] = step["_improves"] and share >= MIN_EXCESS_SHARE
         # acceptance by prediction: the held-out error (pooled over folds) must fall too
         step["_heldout_skipped"] = False

@@ -84,7 +84,7 @@ def test_no_wheel_no_claim():
     base = disc.loop_.fit
     sc = score_structural(disc.fit_data_, base, "series_compliance")
     assert sc.signature is None  # a white residual has no resonance to point at
-    new = refit_structural(disc.fit_data_, base, "series_compliance", sc.starts, 40, n_starts=2)
+    new = refit_structural(disc.fit_data_, base, "series_compliance", sc.starts, 40, n_starts=2).fit
     lowers = new.bic < base.bic - EFFECT_BIC_MARGIN
     significant = wald_chi2(new, "series_compliance") > np.log(new.n_obs)
     assert not (lowers and significant)
