@@ -174,9 +174,10 @@ class Discovery(BaseEstimator):
     delay_scan_ : DelayScan or None
         Driven data: the delay between the channels that stage 1 scanned
         (:mod:`hystdisc.discovery.delay`); None when not scanned.
-    measured_ : list of dict
+    measured_ : list of MeasuredVerdict
         Each measurement effect found before the comparison, judged on the selected
-        family: its ``note`` and, when accepted, its ``entry`` among the effects.
+        family: its ``note`` and, when accepted, its ``entry`` among the effects
+        (:class:`~hystdisc.closing.measured.MeasuredVerdict`).
     failed_ : dict of str to str
         The tasks that failed and were dropped (a family, a start, held-out folds, an
         effect, the staged fit), each with its one-line reason: the run went on without

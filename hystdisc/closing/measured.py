@@ -12,13 +12,30 @@ predict the held-out conditions worse.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 
 import numpy as np
 
+from hystdisc.closing.records import AcceptedEffect
 from hystdisc.closing.refit import EFFECT_BIC_MARGIN, fit_ok
 from hystdisc.faults import Failures
 from hystdisc.fitting import OEFit, OutputErrorFitter
-from hystdisc.models import EFFECTS
+
+
+@dataclass
+class MeasuredVerdict:
+    """The judgement of a measurement effect on the selected family (:func:`judge`).
+
+    Attributes
+    ----------
+    entry : AcceptedEffect or None
+        The effect, when it is kept (an entry of ``results.json``'s ``effects``).
+    note : str
+        The verdict in words (``"<name> (<why>): accepted"`` or why it is rejected).
+    """
+
+    entry: AcceptedEffect | None
+    note: str
 
 
 def add_to_fits(
@@ -49,12 +66,11 @@ def add_to_fits(
 
 def judge(
     data, fit: OEFit, name: str, max_nfev: int, heldout: bool, why: str
-) -> tuple[OEFit, dict]:
+) -> tuple[OEFit, MeasuredVerdict]:
     """The effect ``name`` of ``fit`` judged against the fit without it.
 
     Returns the fit to go on with (``fit``, or the one without the effect) and the
-    record of the judgement: an accepted effect's ``results.json`` entry under
-    ``entry``, the verdict under ``note``.
+    verdict: the accepted effect's entry (None when rejected) and a note.
     """
     keep = tuple(e for e in fit.par.effects if e != name)
     par = fit.par.like(dict(fit.params), keep)
@@ -68,26 +84,10 @@ def judge(
         and (without.heldout_rms is None or fit.heldout_rms <= without.heldout_rms)
     )
     accepted = better and predicts and fit_ok(fit, without)
-    params = {
-        p.name: {"value": fit.params.get(p.name), "ci95": list(fit.ci95.get(p.name, (None, None)))}
-        for p in EFFECTS[name].params
-    }
-    entry = {
-        "name": name,
-        "terms": list(EFFECTS[name].terms),
-        "parameters": params,
-        "rms_before": without.rms,
-        "rms_after": fit.rms,
-        "bic_before": without.bic,
-        "bic_after": fit.bic,
-        "heldout_rms_before": without.heldout_rms,
-        "heldout_rms_after": fit.heldout_rms,
-        "evidence": None,
-        "evidence_eq": None,
-    }
     verdict = "accepted" if accepted else (
         "rejected: " + ("it does not lower BIC by the margin" if not better
                         else "it does not predict the held-out conditions better")
     )  # fmt: skip
     note = f"{name} ({why}): {verdict}"
-    return (fit if accepted else without), {"entry": entry if accepted else None, "note": note}
+    entry = AcceptedEffect.between(name, fit, without, fit) if accepted else None
+    return (fit if accepted else without), MeasuredVerdict(entry, note)

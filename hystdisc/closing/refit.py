@@ -10,6 +10,7 @@ the local and the stage-1 starts.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -26,6 +27,22 @@ from hystdisc.stats import bic_change
 #: within which :mod:`hystdisc.pipeline.close` calls two families equal fits,
 #: ``EQUAL_FIT_BIC``), and refitted only when the score test predicts such a drop.
 EFFECT_BIC_MARGIN = 6.0
+
+
+@dataclass(frozen=True)
+class EffectSkipped:
+    """A catalogued effect that is no candidate for a model (:func:`candidate_effects`).
+
+    Attributes
+    ----------
+    name : str
+        Catalogue name.
+    reason : str
+        Why (the model has its terms, one current level, no rig spring, ...).
+    """
+
+    name: str
+    reason: str
 
 
 def current_levels(currents: np.ndarray) -> int:
@@ -55,7 +72,7 @@ def has_spring(fit: OEFit) -> bool:
     return bool(np.isfinite(ks) and ks > 0.0 and lo > 0.0)
 
 
-def candidate_effects(fit: OEFit, data: FitData) -> tuple[list[str], list[dict]]:
+def candidate_effects(fit: OEFit, data: FitData) -> tuple[list[str], list[EffectSkipped]]:
     """Catalogued effects the fitted model could still lack.
 
     Parameters
@@ -69,8 +86,8 @@ def candidate_effects(fit: OEFit, data: FitData) -> tuple[list[str], list[dict]]
     -------
     candidates : list of str
         Effect names, in catalogue order.
-    skipped : list of dict
-        ``{"name", "reason"}`` for each effect left out.
+    skipped : list of EffectSkipped
+        Each effect left out, with the reason.
     """
     par = fit.par
     system = fit.is_system  # a state-space family: no term form
@@ -123,7 +140,7 @@ def candidate_effects(fit: OEFit, data: FitData) -> tuple[list[str], list[dict]]
         if reason is None:
             out.append(name)
         else:
-            skipped.append({"name": name, "reason": reason})
+            skipped.append(EffectSkipped(name, reason))
     return out, skipped
 
 

@@ -13,6 +13,8 @@ the noise) is never unexplained, white or not.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from hystdisc.closing.diagnostics import (
@@ -32,6 +34,43 @@ from hystdisc.registry import get_experiment
 NOISE_RATIO = 1.1
 #: Relative accuracy floor of the fitting simulator (see :func:`accuracy_floor`).
 SIM_FLOOR_REL = 1e-5
+
+
+@dataclass
+class ResidualVerdict:
+    """The verdict on a residual's structure (:func:`assess_residual`).
+
+    Attributes
+    ----------
+    rms : float
+        Its RMS over the fitted samples, data units.
+    whiteness_p : float
+        p-value of the whiteness test named by :attr:`whiteness_test` (white when at
+        least :data:`~hystdisc.closing.diagnostics.WHITE_P`).
+    dominant_hz : float or None
+        Dominant frequency of a structured residual (None when white; with a noise
+        sample, the frequency of the largest excess over the noise's spectrum).
+    rms_over_noise : float or None
+        RMS over the noise (None when the noise is 0).
+    peak_q : float or None
+        Quality factor of the spectral peak at :attr:`dominant_hz`.
+    whiteness_test : str
+        ``ljung-box`` (pooled over runs) or ``noise spectrum`` (against the spectrum of
+        a sample of the noise).
+    ljung_box_p : float
+        The Ljung-Box p-value, whichever test decided.
+    noise_used : float or None
+        The noise level the closing loop judged with (set by the loop; None otherwise).
+    """
+
+    rms: float
+    whiteness_p: float
+    dominant_hz: float | None
+    rms_over_noise: float | None
+    peak_q: float | None
+    whiteness_test: str
+    ljung_box_p: float
+    noise_used: float | None = None
 
 
 def natural_frequency(fit: OEFit, experiment: str) -> float | None:
@@ -64,7 +103,7 @@ def assess_residual(
     noise_std: float,
     natural_hz: float | None = None,
     noise_samples: list[np.ndarray] | None = None,
-) -> tuple[dict, bool, str | None]:
+) -> tuple[ResidualVerdict, bool, str | None]:
     """Whiteness and spectrum of the final residual.
 
     Parameters
@@ -83,12 +122,8 @@ def assess_residual(
 
     Returns
     -------
-    residual : dict
-        ``rms``, ``whiteness_p`` (of the test named by ``whiteness_test``: ``ljung-box``
-        pooled over runs, or ``noise spectrum``), ``ljung_box_p``, ``dominant_hz`` (None
-        when white; with a noise sample, the frequency of the largest excess over the
-        noise's spectrum), ``rms_over_noise`` and ``peak_q`` (quality factor of the
-        spectral peak).
+    residual : ResidualVerdict
+        Its RMS, whiteness and dominant frequency.
     unexplained : bool
         Not white and RMS above ``NOISE_RATIO`` times the noise.
     text : str or None
@@ -103,7 +138,7 @@ def assess_residual(
     False
     >>> ring = [w + 3e-3 * np.exp(-0.5 * t) * np.sin(2 * np.pi * 6 * t) for w in white]
     >>> res, unexplained, text = assess_residual(ring, 1000.0, 1e-3)
-    >>> unexplained, round(res["dominant_hz"], 1)
+    >>> unexplained, round(res.dominant_hz, 1)
     (True, 6.0)
     >>> text
     'a resonance near 6.0 Hz that no catalogued effect explains (residual RMS 1.6x the noise)'
@@ -117,28 +152,28 @@ def assess_residual(
         p, f_excess, _ = noise_whiteness(res, noise_samples, fs)
         test = NOISE_TEST
     ratio = rms / noise_std if noise_std > 0 else float("inf")
-    out = {
-        "rms": rms,
-        "whiteness_p": p,
-        "dominant_hz": None,
-        "rms_over_noise": ratio if np.isfinite(ratio) else None,
-        "peak_q": None,
-        "whiteness_test": test,
-        "ljung_box_p": lb,
-    }
+    out = ResidualVerdict(
+        rms=rms,
+        whiteness_p=p,
+        dominant_hz=None,
+        rms_over_noise=ratio if np.isfinite(ratio) else None,
+        peak_q=None,
+        whiteness_test=test,
+        ljung_box_p=lb,
+    )
     structured = p < WHITE_P
     if structured and f_excess is not None:  # where the residual exceeds the noise
-        out["dominant_hz"] = f_excess
+        out.dominant_hz = f_excess
     elif structured and res:
         f, psd, resolution = residual_spectrum(res, fs)
         fk, q = spectral_peak(f, psd, f_min=resolution)
         if np.isfinite(fk):
-            out["dominant_hz"] = fk
-            out["peak_q"] = q if np.isfinite(q) else None
+            out.dominant_hz = fk
+            out.peak_q = q if np.isfinite(q) else None
     unexplained = bool(structured and ratio > NOISE_RATIO)
     if not unexplained:
         return out, False, None
-    fk = out["dominant_hz"]
+    fk = out.dominant_hz
     tail = f"that no catalogued effect explains (residual RMS {ratio:.1f}x the noise)"
     if fk is None:
         text = f"structure {tail}"
@@ -149,7 +184,7 @@ def assess_residual(
         )
     elif test == NOISE_TEST:
         text = f"power above the noise's own spectrum, most near {fk:.1f} Hz, {tail}"
-    elif (out["peak_q"] or 0.0) >= 2.0:
+    elif (out.peak_q or 0.0) >= 2.0:
         text = f"a resonance near {fk:.1f} Hz {tail}"
     else:
         text = f"broadband structure (most power near {fk:.1f} Hz) {tail}"

@@ -100,25 +100,6 @@ class EffectScore:
     signature: str | None = None
     cells: list[dict] | None = None
 
-    def to_dict(self) -> dict:
-        """Plain-dict form for ``results.json``."""
-        return {
-            "name": self.name,
-            "terms": list(self.terms),
-            "evidence": self.evidence,
-            "evidence_per_run": list(self.per_run),
-            "evidence_eq": self.evidence_eq,
-            "predicted_dbic_eq": self.predicted_dbic_eq,
-            "start_rms": self.start_rms,
-            "start_dbic": self.start_dbic,
-            "lm": self.lm,
-            "predicted_rms": self.predicted_rms,
-            "predicted_dbic": self.predicted_dbic,
-            "estimate": dict(self.estimate),
-            **({"starts_screened": len(self.starts)} if self.starts is not None else {}),
-            **({"signature": self.signature} if self.signature else {}),
-        }
-
 
 def with_effects(fit: OEFit, extra: Sequence[str], values: dict[str, float] | None = None):
     """Parametrization of ``fit`` plus ``extra`` effects, and its vector at the optimum.

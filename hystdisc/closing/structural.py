@@ -36,7 +36,7 @@ the current optimum in the score test's sense (the rig without the wheel is the 
    (:func:`screened_starts`; screened here when the diagnosis did not), a driven mount
    takes the best-ranked starts; the output-error fit runs from the :data:`N_STARTS` best of them,
    the one with the lowest BIC is kept, and the spread of the starts (their RMS and wheel
-   stiffness) is reported in ``fit.extra["starts"]``.
+   stiffness) is reported with it (:class:`StructuralRefit`).
 
 The refit is then judged like any effect (BIC, significance of the compliance
 ``1/k_w``, excess share, held-out error, admissibility).
@@ -45,6 +45,7 @@ The refit is then judged like any effect (BIC, significance of the compliance
 from __future__ import annotations
 
 import itertools
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -94,6 +95,50 @@ MOUNT_STIFFNESS_RATIOS = (2.0, 5.0, 15.0, 50.0)
 #: Driven: mount natural frequencies of the start grid, in multiples of the top drive
 #: frequency.
 MOUNT_FREQUENCY_RATIOS = (8.0, 25.0)
+
+
+@dataclass
+class StartOutcome:
+    """How the fit from one start of a structural refit ended.
+
+    Attributes
+    ----------
+    parameter : str
+        The parameter that tells the starts apart (the effect's first significance
+        parameter, e.g. the wheel's ``k_w``).
+    start : float
+        Its value at the start (for a screened start, the value of its grid cell).
+    value : float
+        Its fitted value (NaN when the fit does not report it).
+    rms, bic : float
+        The RMS and BIC the fit reached.
+    """
+
+    parameter: str
+    start: float
+    value: float
+    rms: float
+    bic: float
+
+
+@dataclass
+class StructuralRefit:
+    """The outcome of :func:`refit_structural`.
+
+    Attributes
+    ----------
+    fit : OEFit
+        The fit with the lowest BIC.
+    starts : list of StartOutcome
+        How the fit from every start ended, in the order fitted.
+    spread : float or None
+        The relative spread of :attr:`StartOutcome.value` among the starts within the
+        BIC margin of the best (None when the best fit's value is 0 or missing).
+    """
+
+    fit: OEFit
+    starts: list[StartOutcome]
+    spread: float | None
 
 
 def _wheel(structure: Structure, f_hz: float, m: float, zeta: float) -> dict[str, float]:
@@ -420,7 +465,7 @@ def refit_structural(
     max_nfev: int = 60,
     heldout: bool = False,
     n_starts: int = N_STARTS,
-) -> OEFit:
+) -> StructuralRefit:
     """Fit ``fit``'s model plus the structural effect ``name`` from the best ``starts``.
 
     Parameters
@@ -442,14 +487,14 @@ def refit_structural(
 
     Returns
     -------
-    OEFit
-        The fit with the lowest BIC; ``extra["starts"]`` lists every start's outcome
-        (start and final ``k_w``, RMS, BIC) and ``extra["starts_spread"]`` the relative
-        spread of ``k_w`` among the starts within the BIC margin of the best.
+    StructuralRefit
+        The fit with the lowest BIC, every start's outcome (start and final ``k_w``, RMS,
+        BIC) and the relative spread of ``k_w`` among the starts within the BIC margin of
+        the best.
     """
     eff = EFFECTS[name]
     key = (eff.significance or tuple(p.name for p in eff.params))[0]
-    fits, rows = [], []
+    fits, rows = [], []  # the fits and how each ended
     by = "stiffness" if data.exp.motion_imposed else "frequency"
     if data.exp.motion_imposed:
         n_starts = min(n_starts, N_STARTS_MOUNT)
@@ -472,24 +517,22 @@ def refit_structural(
                 new = OutputErrorFitter(data, par, max_nfev=max_nfev).fit(heldout=False)
         fits.append(new)
         rows.append(
-            {
-                f"{key}_start": float(st.get(f"{key}_start", st[key])),
-                key: float(new.params.get(key, np.nan)),
-                "rms": float(new.rms),
-                "bic": float(new.bic),
-            }
+            StartOutcome(
+                key,
+                float(st.get(f"{key}_start", st[key])),
+                float(new.params.get(key, np.nan)),
+                float(new.rms),
+                float(new.bic),
+            )
         )
     ok = [f for f in fits if np.isfinite(f.bic)]
     best = min(ok, key=lambda f: f.bic) if ok else fits[0]
     if heldout and ok:
         best = OutputErrorFitter(data, best.par, max_nfev=max_nfev).heldout_at(best)
-    near = [
-        r[key] for r in rows if np.isfinite(r["bic"]) and r["bic"] < best.bic + EFFECT_BIC_MARGIN
-    ]
-    best.extra["starts"] = rows
-    best.extra["starts_spread"] = (
+    near = [r.value for r in rows if np.isfinite(r.bic) and r.bic < best.bic + EFFECT_BIC_MARGIN]
+    spread = (
         float((max(near) - min(near)) / abs(best.params[key]))
         if near and best.params.get(key)
         else None
     )
-    return best
+    return StructuralRefit(best, rows, spread)

@@ -8,7 +8,7 @@ than Dahl's own). Three tools make the fits global enough to trust:
    the best and continues it to convergence (given the noise floor, the first start is
    fitted first, and the others only run when it ends above the floor); the fit's note says how many starts reached
    the optimum (RMS within :data:`REACHED_RTOL`) and the spread when they disagree, and
-   ``fit.extra["starts"]`` holds every start's RMS.
+   ``fit.starts`` holds every start's RMS.
    The discovery adds, for a family above the floor, the optima of its related
    families (``Family.start_from``, read through :func:`mapped_starts`) to its starts:
    on a coarse encoder stage 1 can miss every basin (a LuGre set whose stage-1 start was
@@ -148,7 +148,7 @@ def best_of_starts(
     -------
     OEFit
         The best fit (no held-out error: ask :meth:`OutputErrorFitter.heldout_at`), with
-        the note on the starts and ``extra["starts"]`` (label -> RMS).
+        the note on the starts and :attr:`~OEFit.starts` (label -> RMS).
 
     Raises
     ------
@@ -186,7 +186,7 @@ def best_of_starts(
                 f"the first of {len(starts)} starts ({labels[0]}) reached the noise floor "
                 f"(RMS {lead.rms:.4g}): the others were not needed",
             )
-            lead.extra["starts"] = {labels[0]: float(lead.rms)}
+            lead.starts = {labels[0]: float(lead.rms)}
             return lead
 
     def one(k: int) -> tuple[np.ndarray, float]:
@@ -244,7 +244,7 @@ def best_of_starts(
             else ""
         ),
     )
-    best.extra["starts"] = rms
+    best.starts = rms
     return best
 
 
@@ -325,10 +325,10 @@ def helper_families(
 
 
 def _starts_note(fit: OEFit, note: str) -> None:
-    """Add the note on how the starts ended (also kept in ``extra["starts_note"]``, which a
-    refit from another family's optimum carries over)."""
+    """Add the note on how the starts ended (also kept in :attr:`~OEFit.starts_note`, which
+    a refit from another family's optimum carries over)."""
     fit.notes.append(note)
-    fit.extra["starts_note"] = note
+    fit.starts_note = note
 
 
 def random_starts(
@@ -495,15 +495,15 @@ def _nested_refit(
     if not new.rss < fit.rss * (1 - NESTING_RTOL):
         return None
     # the new optimum's own notes (identifiability) stand; of the old fit's, the starts'
-    if "starts_note" in fit.extra:
-        new.notes.append(fit.extra["starts_note"])
+    if fit.starts_note is not None:
+        new.notes.append(fit.starts_note)
     new.notes.append(
         f"refitted from the optimum of {other}, mapped into it, which fitted "
         f"better{after} (RMS {fit.rms:.4g} -> {new.rms:.4g}): a family never ends worse "
         "than a model it contains"
     )
-    new.extra.update({k: v for k, v in fit.extra.items() if k not in new.extra})
-    new.extra["nested_from"] = other
+    # the old fit's starts stay the record of how this family was fitted
+    new.starts, new.starts_note, new.nested_from = fit.starts, fit.starts_note, other
     return new
 
 

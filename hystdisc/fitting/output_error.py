@@ -101,6 +101,14 @@ class OEFit:
     diverged : list of str
         The runs whose simulation diverged (or could not be resolved) at the optimum:
         such a fit is no model of those runs (its residual there holds a placeholder).
+    starts : dict of str to float or None
+        A fit from several starts (:func:`~hystdisc.fitting.multistart.best_of_starts`):
+        the RMS each start ended at, by its label; None for a fit from one start.
+    starts_note : str or None
+        That fit's note on how the starts ended (also among ``notes``).
+    nested_from : str or None
+        The family whose optimum this fit was refitted from (a family never ends worse
+        than a model it contains), if any.
     """
 
     par: Parametrization
@@ -122,8 +130,10 @@ class OEFit:
     heldout_predictions: list[np.ndarray] | None = None
     nfev: int = 0
     success: bool = True
-    extra: dict = field(default_factory=dict)
     diverged: list[str] = field(default_factory=list)
+    starts: dict[str, float] | None = None
+    starts_note: str | None = None
+    nested_from: str | None = None
 
     @property
     def term_model(self) -> TermModel:

@@ -92,7 +92,7 @@ def close(state: State, fit_family: Callable) -> None:
         n for n, b in state.bics.items() if b - ref < EQUAL_FIT_BIC and n != state.family
     )
     state.final_fit = selected if state.loop is None else state.loop.fit
-    kept = [v["entry"]["name"] for v in state.measured if v["entry"] is not None]
+    kept = [v.entry.name for v in state.measured if v.entry is not None]
     state.effects = kept + ([] if state.loop is None else list(state.loop.effects))
     final = state.final_fit
     state.final_admissibility = (

@@ -1,9 +1,12 @@
 """The one place that builds :class:`~hystdisc.results.Results` from a discovery's state.
 
 :func:`build_results` reads the :class:`~hystdisc.pipeline.state.State` the stages filled
-and writes every key of ``results.json``, the closing loop's included, in the order of
+and makes every key of ``results.json``, the closing loop's included, in the order of
 schema 1 (so that the bytes of a file stay those of hystdisc 0.1 apart from
-``schema_version``); the tables of single fits are :mod:`hystdisc.results.build`'s.
+``schema_version``). It makes the typed records directly
+(:meth:`~hystdisc.results.record.Record.make`, rounded as the file holds them), never a
+plain table to parse back: the tables of single fits are :mod:`hystdisc.results.build`'s,
+those of the closing loop's records :mod:`hystdisc.pipeline.loop_record`'s.
 """
 
 from __future__ import annotations
@@ -14,11 +17,18 @@ import numpy as np
 
 from hystdisc import __version__
 from hystdisc.models import TermModel, format_equation
+from hystdisc.pipeline.loop_record import effect_step, loop_tables, residual_summary
 from hystdisc.pipeline.state import State
 from hystdisc.registry import get_experiment, get_family
-from hystdisc.results import Results
+from hystdisc.results import SCHEMA_VERSION, Results
 from hystdisc.results.build import family_entry, final_entry, system_entry
-from hystdisc.results.records import term_model_to_dict
+from hystdisc.results.records import (
+    DiscoveredResult,
+    ResidualSummary,
+    RunRecord,
+    Stage1Record,
+    TermModelRecord,
+)
 
 
 def equations(tm: TermModel, experiment: str) -> str:
@@ -72,15 +82,35 @@ def current_dependence(state: State) -> dict | None:
     }
 
 
-def _no_loop_residual(state: State) -> dict:
+def _no_loop_residual(state: State) -> ResidualSummary:
     """The residual summary of the selected fit over the fitted samples (no closing loop)."""
-    from hystdisc.closing.diagnostics import residual_summary
+    from hystdisc.closing.diagnostics import residual_summary as summary
 
     sel = state.family_fits[state.family]
     fs = float(np.median([r.fs for r in state.dataset.runs]))
     masked = [r[m] for r, m in zip(sel.residuals, state.fd.mask, strict=True)]
     noise = state.noise
-    return residual_summary(masked, fs, state.noise_std, noise.samples if noise else None)
+    return ResidualSummary.make(
+        **summary(masked, fs, state.noise_std, noise.samples if noise else None)
+    )
+
+
+def _discovered(state: State) -> DiscoveredResult:
+    """The ``discovered`` entry: stage 1's structure and its output-error fit."""
+    dfit = state.discovered_fit
+    return DiscoveredResult.make(
+        name=state.discovered_name,
+        shape=state.discovered_shape,
+        equations=equations(dfit.term_model, state.experiment),
+        parameters=dfit.params,
+        rms=dfit.rms,
+        bic=dfit.bic,
+        term_model=TermModelRecord.of(dfit.term_model),
+        stage1={
+            k: Stage1Record.make(terms=v.terms, bic=v.bic, inclusion=v.inclusion)
+            for k, v in state.stage1.items()
+        },
+    )
 
 
 def build_results(state: State) -> Results:
@@ -93,44 +123,37 @@ def build_results(state: State) -> Results:
         n: family_entry(n, f, state.terms, adm.get(n), one_current=one)
         for n, f in state.family_fits.items()
     }
-    sel = state.family_fits[state.family]
-    dfit = state.discovered_fit
     loop = state.loop
-    final = loop.fit if loop is not None else sel
+    final = loop.fit if loop is not None else state.family_fits[state.family]
     forced = get_experiment(state.experiment).has_input
+    # the keys in the order of the file (schema 1's, then the ones added since)
     data: dict[str, Any] = {
+        "schema_version": SCHEMA_VERSION,
         "version": __version__,
         "input": dataset.source,
         "experiment": state.experiment,
         **({"input_hold": opts.input_hold} if forced else {}),
         "noise_std": state.noise_std,
         "terms": state.terms,
-        "discovered": {
-            "name": state.discovered_name,
-            "shape": state.discovered_shape,
-            "equations": equations(dfit.term_model, state.experiment),
-            "parameters": dfit.params,
-            "rms": dfit.rms,
-            "bic": dfit.bic,
-            "term_model": term_model_to_dict(dfit.term_model),
-            "stage1": {
-                k: {"terms": v.terms, "bic": v.bic, "inclusion": v.inclusion}
-                for k, v in state.stage1.items()
-            },
-        },
+        "discovered": _discovered(state),
         "family": state.family,
         "declared": state.declared,
         "equal_fits": state.equal_fits,
         "families": fams,
-        "model": None if final.is_system else term_model_to_dict(final.term_part),
+        "model": None if final.is_system else TermModelRecord.of(final.term_part),
         # the measurement effects judged before the loop (a channel delay), then the loop's
-        "effects": [v["entry"] for v in state.measured if v["entry"]]
-        + (loop.accepted if loop is not None else []),
+        "effects": [effect_step(v.entry) for v in state.measured if v.entry is not None]
+        + ([effect_step(a) for a in loop.accepted] if loop is not None else []),
         "unexplained": loop.unexplained if loop is not None else False,
         # the residual over the samples the fit uses (driven start-up excluded)
-        "residual": loop.residual if loop is not None else _no_loop_residual(state),
+        "residual": (
+            residual_summary(loop.residual)
+            if loop is not None and loop.residual is not None
+            else _no_loop_residual(state)
+        ),
         "runs": [
-            {"name": r.name, "current": r.current, "samples": int(r.t.size)} for r in dataset.runs
+            RunRecord.make(name=r.name, current=r.current, samples=int(r.t.size))
+            for r in dataset.runs
         ],
         "seed": opts.seed,
         "conditions": {
@@ -155,7 +178,7 @@ def build_results(state: State) -> Results:
     # the tasks that failed and were dropped (the run went on without them)
     data["failed"] = dict(state.failed)
     if state.delay_scan is not None:  # the delay between the channels, scanned by stage 1
-        notes = [v["note"] for v in state.measured]
+        notes = [v.note for v in state.measured]
         data["delay_scan"] = {**state.delay_scan.to_dict(), "notes": notes}
     if state.reselection is not None:  # the families compared again with the rig's effects
         data["reselection"] = state.reselection.to_dict()
@@ -164,19 +187,12 @@ def build_results(state: State) -> Results:
     if state.staged is not None:  # the seed's flowchart: per-level fits and current laws
         data["current_laws"] = state.staged.to_dict(fd.names)
     if loop is not None:
-        data.update(
-            {
-                "effects_tried": loop.tried,
-                "effects_skipped": loop.skipped,
-                "diagnosis": loop.diagnosis,
-                "unexplained_text": loop.unexplained_text,
-                "final": final_entry(
-                    loop.fit,
-                    state.family,
-                    state.effects,
-                    state.final_admissibility,
-                    tuple(currents["fixed"]) if currents else (),
-                ),
-            }
+        data.update(loop_tables(loop))
+        data["final"] = final_entry(
+            loop.fit,
+            state.family,
+            state.effects,
+            state.final_admissibility,
+            tuple(currents["fixed"]) if currents else (),
         )
-    return Results.from_dict(data)
+    return Results.make(**data)

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from hystdisc.closing import LoopResult
+from hystdisc.closing.measured import MeasuredVerdict
 from hystdisc.closing.reduction import Reduction
 from hystdisc.closing.reselect import Reselection
 from hystdisc.data import Dataset
@@ -85,7 +86,7 @@ class State:
     family: str = ""
     selection_note: str | None = None
     declared: bool = False
-    measured: list[dict] = field(default_factory=list)
+    measured: list[MeasuredVerdict] = field(default_factory=list)
     outliers: Outliers | None = None
     staged: StagedFit | None = None
     # the closing loop and the comparison again

@@ -2,7 +2,8 @@
 the final model's.
 
 The whole record is built from a discovery's state by
-:func:`hystdisc.pipeline.record.build_results`; these are the tables it is made of.
+:func:`hystdisc.pipeline.record.build_results`; these are the tables it is made of, made
+as records (:meth:`~hystdisc.results.record.Record.make`), not as plain tables to parse.
 """
 
 from __future__ import annotations
@@ -10,17 +11,22 @@ from __future__ import annotations
 from typing import Any
 
 from hystdisc.registry import get_family
-from hystdisc.results.records import term_model_to_dict
+from hystdisc.results.records import (
+    FamilyResult,
+    FinalResult,
+    ParameterResult,
+    TermModelRecord,
+)
 
 
-def _parameters(fit: Any, fixed: tuple[str, ...] = ()) -> dict:
-    """``{name: {value, ci95, identifiable}}`` of an output-error fit; the parameters
+def _parameters(fit: Any, fixed: tuple[str, ...] = ()) -> dict[str, ParameterResult]:
+    """``{name: (value, ci95, identifiable)}`` of an output-error fit; the parameters
     ``fixed`` (held at 0 because the data cannot show them) are not identifiable."""
     params = {}
     for k, v in fit.params.items():
         lo, hi = fit.ci95.get(k, (float("nan"), float("nan")))
         ident = fit.identifiable.get(k, True) and k not in fixed
-        params[k] = {"value": v, "ci95": [lo, hi], "identifiable": ident}
+        params[k] = ParameterResult.make(value=v, ci95=[lo, hi], identifiable=ident)
     return params
 
 
@@ -30,8 +36,8 @@ def family_entry(
     discovered_terms: dict,
     admissibility: Any | None = None,
     one_current: bool = False,
-) -> dict:
-    """The ``families`` entry of one family's fit (a plain table of the schema).
+) -> FamilyResult:
+    """The ``families`` entry of one family's fit.
 
     Parameters
     ----------
@@ -49,36 +55,36 @@ def family_entry(
 
     Returns
     -------
-    dict
-        The table of :class:`~hystdisc.results.FamilyResult`.
+    FamilyResult
+        The entry.
     """
     fam = get_family(name)
     fixed = tuple(fam.current_params) if one_current else ()
     if fit.is_system:  # a state-space family: no terms to compare with stage 1's
-        return {
+        return FamilyResult.make(
             **_common(fit, fam, admissibility, fixed),
-            "missing_terms": [],
-            "extra_terms": [],
-            "notes": list(fit.notes),
-            "term_model": None,
-            "system": system_entry(fit),
-            "converged": fit.success,
-        }
+            missing_terms=[],
+            extra_terms=[],
+            notes=list(fit.notes),
+            term_model=None,
+            system=system_entry(fit),
+            converged=fit.success,
+        )
     # terms the fit really uses (a current term fixed at 0 for one current is not "added")
     tm = fit.term_model
     fam_t = {t for t in fam.torque_terms if tm.torque.get(t, 0.0) != 0.0}
     fam_h = {t for t in fam.hysteresis_terms if tm.hysteresis.get(t, 0.0) != 0.0}
     dt = set(discovered_terms["torque"]) - {"theta", "1"}
     dh = set(discovered_terms["hysteresis"])
-    return {
+    return FamilyResult.make(
         **_common(fit, fam, admissibility, fixed),
         # hysteresis-side names are prefixed: theta_dot and |theta_dot|*z exist on both sides
-        "missing_terms": sorted(dt - fam_t) + [f"dz/dt: {t}" for t in sorted(dh - fam_h)],
-        "extra_terms": sorted(fam_t - dt) + [f"dz/dt: {t}" for t in sorted(fam_h - dh)],
-        "notes": list(fit.notes),
-        "term_model": term_model_to_dict(fit.term_model),
-        "converged": fit.success,
-    }
+        missing_terms=sorted(dt - fam_t) + [f"dz/dt: {t}" for t in sorted(dh - fam_h)],
+        extra_terms=sorted(fam_t - dt) + [f"dz/dt: {t}" for t in sorted(fam_h - dh)],
+        notes=list(fit.notes),
+        term_model=TermModelRecord.of(fit.term_model),
+        converged=fit.success,
+    )
 
 
 def _common(fit: Any, fam: Any, admissibility: Any | None, fixed: tuple[str, ...]) -> dict:
@@ -128,18 +134,18 @@ def final_entry(
     effects: list[str],
     admissibility: Any = None,
     fixed: tuple[str, ...] = (),
-) -> dict:
-    """The ``final`` table: the selected family with its accepted effects (``fixed``: its
+) -> FinalResult:
+    """The ``final`` entry: the selected family with its accepted effects (``fixed``: its
     parameters held at 0, not identifiable)."""
-    return {
-        "family": family,
-        "effects": list(effects),
-        "parameters": _parameters(fit, fixed),
-        "rms": fit.rms,
-        "bic": fit.bic,
-        "heldout_rms": fit.heldout_rms,
-        "n_params": fit.n_params,
-        "converged": fit.success,
-        "notes": list(fit.notes),
+    return FinalResult.make(
+        family=family,
+        effects=list(effects),
+        parameters=_parameters(fit, fixed),
+        rms=fit.rms,
+        bic=fit.bic,
+        heldout_rms=fit.heldout_rms,
+        n_params=fit.n_params,
+        converged=fit.success,
+        notes=list(fit.notes),
         **_admissible(admissibility),
-    }
+    )

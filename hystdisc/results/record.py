@@ -20,6 +20,8 @@ Examples
 (1.0, 2.0, {'label': 'a'}, {'y': 2.0, 'x': 1.0, 'label': 'a'})
 >>> Point(x=3.0).to_dict()  # built in code: every attribute is written
 {'x': 3.0, 'y': None}
+>>> Point.make(y=1 / 3, x=np.float64(2.0)).to_dict()  # made from values: rounded, as given
+{'y': 0.3333333333, 'x': 2.0}
 """
 
 from __future__ import annotations
@@ -158,6 +160,29 @@ class Record:
                 extra[key] = value
         obj = cls(**kw, extra=extra)
         obj.remember_keys(tuple(data))
+        return obj
+
+    @classmethod
+    def make(cls, **values: Any):
+        """The record of ``values``, made in code as :meth:`from_dict` reads a table.
+
+        Each value is rounded as ``results.json`` rounds it (:func:`round_json`: floats to
+        :data:`SIG_DIGITS` significant digits, NaN and inf to None, tuples to lists), and
+        the keys are written in the order given; a key that is no attribute is kept in
+        ``extra``. Nested records are given as records (a :meth:`make` of their own).
+
+        Returns
+        -------
+        Record
+            The record (of the class it is called on).
+        """
+        names = {f.name for f in dataclasses.fields(cls)} - {"extra"}
+        kw: dict[str, Any] = {}
+        extra: dict[str, Any] = {}
+        for key, value in values.items():
+            (kw if key in names else extra)[key] = round_json(value)
+        obj = cls(**kw, extra=extra)
+        obj.remember_keys(tuple(values))
         return obj
 
     def remember_keys(self, keys: tuple[str, ...]) -> None:

@@ -88,8 +88,9 @@ class TermModelRecord(Record):
 
     @classmethod
     def of(cls, tm: TermModel) -> TermModelRecord:
-        """The record of a :class:`~hystdisc.models.TermModel`."""
-        return cls.from_dict(term_model_to_dict(tm))
+        """The record of a :class:`~hystdisc.models.TermModel`, rounded as ``results.json``
+        holds it."""
+        return cls.make(**term_model_to_dict(tm))
 
     def to_term_model(self) -> TermModel:
         """The :class:`~hystdisc.models.TermModel` (ValueError/TypeError when malformed)."""
@@ -327,6 +328,12 @@ class EffectTrial(Record):
         The effect was kept.
     excess_share : float or None
         Share of the residual's excess over the noise that the refit removed.
+    starts : list of dict or None
+        A structural refit: how the fit from each of its starts ended (``<p>_start``,
+        ``<p>``, ``rms``, ``bic``, for the parameter ``<p>`` that tells the starts apart).
+    starts_spread : float or None
+        A structural refit: the relative spread of ``<p>`` among its starts within the
+        BIC margin of the best.
     note : str or None
         Why it was not accepted (absent when accepted).
     removed : bool
@@ -357,6 +364,8 @@ class EffectTrial(Record):
     converged: bool = True
     accepted: bool = False
     excess_share: float | None = None
+    starts: list[dict[str, float]] | None = None
+    starts_spread: float | None = None
     note: str | None = None
     removed: bool = False
     restarted: bool = False
@@ -406,6 +415,10 @@ class EffectCandidate(Record):
         Predicted RMS and BIC change after adding it.
     estimate : dict of str to float
         One-step Gauss-Newton estimate of its parameters.
+    starts_screened : int or None
+        A structural effect: the starts its diagnosis screened.
+    signature : str or None
+        A structural effect's signature in the residual, in words, when there is one.
     extra : dict
         Keys this version does not know (kept on a round trip).
     """
@@ -422,6 +435,8 @@ class EffectCandidate(Record):
     predicted_rms: float | None = None
     predicted_dbic: float | None = None
     estimate: dict[str, float] = field(default_factory=dict)
+    starts_screened: int | None = None
+    signature: str | None = None
     extra: dict[str, Any] = field(default_factory=dict, repr=False)
 
 

@@ -19,6 +19,7 @@ from hystdisc import registry
 from hystdisc.apply.predict import predict_dataset
 from hystdisc.closing import (
     EFFECT_BIC_MARGIN,
+    EffectSkipped,
     assess_residual,
     candidate_effects,
     score_effects,
@@ -225,9 +226,7 @@ def test_candidates_follow_the_family_and_the_data():
     cand, skipped = candidate_effects(_fake_fit("dahl"), five)
     # Dahl lacks every catalogued effect; a release rig records one channel (no delay)
     assert cand == [e for e in EFFECTS if e != "channel_delay"]
-    assert skipped == [
-        {"name": "channel_delay", "reason": "a release experiment records one channel"}
-    ]
+    assert skipped == [EffectSkipped("channel_delay", "a release experiment records one channel")]
     cand, skipped = candidate_effects(_fake_fit("bingham"), five)
     assert cand == [
         "quadratic_damping",
@@ -236,7 +235,7 @@ def test_candidates_follow_the_family_and_the_data():
         "series_compliance",
         "shear_thinning",
     ]
-    reasons = {s["name"]: s["reason"] for s in skipped}
+    reasons = {s.name: s.reason for s in skipped}
     assert "already has i*theta_dot" in reasons["current_viscous"]
     assert "already has sign(theta_dot)" in reasons["coulomb"]
     assert "no hysteretic state" in reasons["current_saturation"]
@@ -253,12 +252,12 @@ def test_candidates_follow_the_family_and_the_data():
         _fake_fit("dahl", "driven", ks=0.01, ks_lo=-0.05), _fake_data([0, 0.5, 1.0], "driven")
     )
     assert "offset" not in cand and "cubic_stiffness" not in cand
-    assert any("no rig spring" in s["reason"] for s in skipped)
+    assert any("no rig spring" in s.reason for s in skipped)
     # a driven damper behind a compliant mount needs no rig spring; the series compliance
     # of a forced rig is not built
     assert "series_compliance" in cand
     _, skipped = candidate_effects(_fake_fit("dahl", "forced"), _fake_data([0, 0.5, 1.0], "forced"))
-    reasons = {s["name"]: s["reason"] for s in skipped}
+    reasons = {s.name: s.reason for s in skipped}
     assert reasons["series_compliance"].startswith("built for release, driven experiments only")
     # an accepted effect is not a candidate again
     cand, _ = candidate_effects(_fake_fit("dahl", effects=("coulomb",)), five)
@@ -283,14 +282,14 @@ def test_assess_residual_white_and_structured():
     t = np.arange(3000) / 1000.0
     white = [NOISE * rng.standard_normal(t.size) for _ in range(3)]
     res, unexplained, text = assess_residual(white, 1000.0, NOISE)
-    assert unexplained is False and text is None and res["dominant_hz"] is None
+    assert unexplained is False and text is None and res.dominant_hz is None
     # a slow drift at the rig's own frequency is named as a misfit of the main oscillation
     mis = [x + 3 * NOISE * np.exp(-t) * np.sin(2 * np.pi * 2.0 * t) for x in white]
     res, unexplained, text = assess_residual(mis, 1000.0, NOISE, natural_hz=2.0)
     assert unexplained is True
-    assert res["dominant_hz"] == pytest.approx(2.0, rel=0.1)
+    assert res.dominant_hz == pytest.approx(2.0, rel=0.1)
     assert "rig's own oscillation" in text
     # structure below the noise level is not called unexplained
     weak = [x + 0.2 * NOISE * np.sin(2 * np.pi * 9.0 * t) for x in white]
     res, unexplained, _ = assess_residual(weak, 1000.0, NOISE)
-    assert res["whiteness_p"] < 0.01 and unexplained is False
+    assert res.whiteness_p < 0.01 and unexplained is False

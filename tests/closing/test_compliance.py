@@ -64,10 +64,12 @@ def test_the_loop_finds_the_compliant_wheel(wheel_fit):
     assert ci["k_w"][0] <= WHEEL["k_w"] <= ci["k_w"][1]
     for k in ("k_s", "k_x", "k_wa", "k_wb", "rho"):
         assert p[k] == pytest.approx(DAMPER[k], rel=0.03), k
-    step = next(s for s in loop.tried if s["name"] == "series_compliance")
-    assert step["accepted"] and step["heldout_rms_after"] < step["heldout_rms_before"]
-    # the multi-start refit reports every start's outcome
-    assert len(step["starts"]) >= 2 and {"k_w_start", "k_w", "rms", "bic"} <= set(step["starts"][0])
+    step = next(s for s in loop.tried if s.name == "series_compliance")
+    assert step.accepted and step.heldout_rms_after < step.heldout_rms_before
+    # the multi-start refit reports every start's outcome, results.json too
+    assert len(step.starts) >= 2 and step.starts[0].parameter == "k_w"
+    trial = next(t for t in wheel_fit.results_.effects_tried if t.name == "series_compliance")
+    assert {"k_w_start", "k_w", "rms", "bic"} <= set(trial.starts[0])
     # results: the final table names the effect and its parameters
     res = wheel_fit.results_
     assert [e.name for e in res.effects] == ["series_compliance"]
@@ -84,7 +86,7 @@ def test_no_wheel_no_claim():
     base = disc.loop_.fit
     sc = score_structural(disc.fit_data_, base, "series_compliance")
     assert sc.signature is None  # a white residual has no resonance to point at
-    new = refit_structural(disc.fit_data_, base, "series_compliance", sc.starts, 40, n_starts=2)
+    new = refit_structural(disc.fit_data_, base, "series_compliance", sc.starts, 40, n_starts=2).fit
     lowers = new.bic < base.bic - EFFECT_BIC_MARGIN
     significant = wald_chi2(new, "series_compliance") > np.log(new.n_obs)
     assert not (lowers and significant)
@@ -105,9 +107,9 @@ def test_a_mild_wheel_under_another_family_is_diagnosed_by_its_screened_starts(t
     disc = Discovery(model="lugre").fit(load(out))
     loop = disc.loop_
     assert loop.effects == ["series_compliance"]
-    first = loop.diagnosis[0]["candidates"]
-    score = next(c for c in first if c["name"] == "series_compliance")
-    assert score["evidence"] > 0.05
+    first = loop.diagnosis[0].candidates
+    score = next(c for c in first if c.name == "series_compliance")
+    assert score.evidence > 0.05
     ci = loop.fit.ci95
     for k, v in wheel.items():  # the truth inside each 95 % interval
         assert ci[k][0] <= v <= ci[k][1], k

@@ -92,8 +92,8 @@ def test_the_loop_finds_the_mount_at_the_noise(mount_fit):
     assert ci["k_w"][0] < MOUNT["k_w"] < ci["k_w"][1]
     assert abs(p["c_w"] / MOUNT["c_w"] - 1.0) < 0.25
     # channel_delay mimics part of the mount: it was refitted and lost on BIC
-    tried = {s["name"]: s for s in loop.tried}
-    assert "channel_delay" in tried and not tried["channel_delay"]["accepted"]
+    tried = {s.name: s for s in loop.tried}
+    assert "channel_delay" in tried and not tried["channel_delay"].accepted
 
 
 def test_saved_results_predict_new_data_with_the_mount(mount_fit):

@@ -68,8 +68,8 @@ def test_an_offset_the_base_fit_absorbed_is_refitted_from_its_stage1_value():
     loop = d.loop_
     assert d.selected_fit_.rms > 2 * NOISE  # the precondition: the base fit absorbed it
     assert loop.effects == ["offset"]
-    step = next(s for s in loop.tried if s["name"] == "offset")
-    assert step["accepted"] and step.get("restarted") is True
+    step = next(s for s in loop.tried if s.name == "offset")
+    assert step.accepted and step.restarted is True
     p, ci = loop.fit.params, loop.fit.ci95
     assert abs(p["theta_off"] / 0.03 - 1.0) < 0.01
     assert loop.fit.rms < 1.02 * NOISE and loop.fit.heldout_rms < 1.05 * NOISE

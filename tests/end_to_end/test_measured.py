@@ -98,11 +98,11 @@ def test_benchmark_noise_is_measured_from_its_periods(data_dir):
     assert est.std == pytest.approx(bwb.rms(resid), rel=0.03)
     assert est.differences < 0.85 * bwb.rms(resid)
     res, unexplained, _ = assess_residual([resid], run.fs, est.std, noise_samples=est.samples)
-    assert res["whiteness_p"] >= 0.01 and not unexplained
+    assert res.whiteness_p >= 0.01 and not unexplained
     assert assess_residual([resid], run.fs, est.differences)[1]  # the old verdict
     tone = resid + 0.2 * est.std * np.sqrt(2) * np.sin(2 * np.pi * 104.0 * run.t)
     res, _, _ = assess_residual([tone], run.fs, est.std, noise_samples=est.samples)
-    assert res["whiteness_p"] < 1e-6 and res["dominant_hz"] == pytest.approx(104.0, abs=1.0)
+    assert res.whiteness_p < 1e-6 and res.dominant_hz == pytest.approx(104.0, abs=1.0)
 
 
 def test_benchmark_fit_is_judged_against_the_noise(benchmark_outcome):

@@ -56,14 +56,21 @@ def test_a_family_never_ends_worse_than_a_model_it_contains():
     rss = start_rss(fd, bad_par, lugre.nuisance)
     n = lugre.n_obs
     bad = dataclasses.replace(
-        lugre, par=bad_par, x=bad_par.x0, rss=rss, rms=float(np.sqrt(rss / n)), notes=[], extra={}
+        lugre,
+        par=bad_par,
+        x=bad_par.x0,
+        rss=rss,
+        rms=float(np.sqrt(rss / n)),
+        notes=[],
+        starts=None,
+        starts_note=None,
     )
     assert bad.rms > 1.5 * dahl.rms
     # ... is refitted from Dahl's optimum and ends at least as good as Dahl
     out = nesting_pass(fd, {"dahl": dahl, "lugre": bad}, max_nfev=40)
     assert out["dahl"] is dahl
     assert out["lugre"].rss <= dahl.rss * (1 + 1e-6)
-    assert out["lugre"].extra["nested_from"] == "dahl"
+    assert out["lugre"].nested_from == "dahl"
     assert any("refitted from the optimum of dahl" in n for n in out["lugre"].notes)
 
 
@@ -102,7 +109,7 @@ def test_a_family_above_the_floor_screens_an_approximate_optimum_that_starts_wor
     own = fam.from_terms(fam.to_terms({k: v for k, v in truth.items() if k != "k_s"}))
     for k, v in own.items():
         assert new.params[k] == pytest.approx(v, rel=0.03), k
-    assert new.extra["nested_from"] == "bouc-wen-std"
+    assert new.nested_from == "bouc-wen-std"
     # the notes are the new optimum's own and the refit's; none of the stuck fit's
     assert not set(stuck.notes) & set(new.notes)
     assert any("after 8 iterations" in n for n in new.notes)
@@ -156,11 +163,11 @@ def test_best_of_starts_keeps_the_best_basin_and_says_how_many_reached_it():
     note = [n for n in fit.notes if "starts reached the optimum" in n][0]
     # the far start did not reach the optimum in its screen, and the note says so
     assert note.startswith("1 of 3") and "RMS within 1%: good)" in note and "(far)" in note
-    assert set(fit.extra["starts"]) == {"far", "good", "random 1"}
+    assert set(fit.starts) == {"far", "good", "random 1"}
     # with the noise floor known, a first start at the floor ends the search
     pars = [(lb, FamilyParametrization("dahl", "release", st)) for lb, st in starts[1:]]
     fit = best_of_starts(fd, pars, max_nfev=40, good_rms=1.1 * NOISE)
-    assert fit.extra["starts"].keys() == {"good"}
+    assert fit.starts.keys() == {"good"}
     assert any("the others were not needed" in n for n in fit.notes)
 
 
@@ -175,14 +182,16 @@ def test_a_screen_that_stalls_far_above_the_first_start_can_still_win():
     good = {k: dahl.params[k] for k in (*DAHL, "J") if k in dahl.params}
     par = FamilyParametrization("dahl", "release", {**good, "rho": 3000.0})
     # a first start that ended in a poorer place (1.5 times the noise)
-    first = dataclasses.replace(dahl, rss=2.25 * dahl.rss, rms=1.5 * dahl.rms, notes=[], extra={})
+    first = dataclasses.replace(
+        dahl, rss=2.25 * dahl.rss, rms=1.5 * dahl.rms, notes=[], starts=None, starts_note=None
+    )
     rms = {}
     for steps in (1, 2):
         _, rss = OutputErrorFitter(fd, par).screen(steps)
         rms[steps] = np.sqrt(rss / dahl.n_obs)
     assert rms[1] > 10 * first.rms and rms[2] ** 2 > 0.9 * rms[1] ** 2
     fit = best_of_starts(fd, [("first", dahl.par), ("rho off", par)], max_nfev=40, first=first)
-    assert fit.rss <= dahl.rss * (1 + 1e-3) and fit.extra["starts"]["rho off"] == fit.rms
+    assert fit.rss <= dahl.rss * (1 + 1e-3) and fit.starts["rho off"] == fit.rms
     assert "RMS within 1%: rho off)" in fit.notes[-1]
 
 
@@ -196,7 +205,7 @@ def test_a_lone_familys_starts_are_screened_on_the_threads_with_the_same_answer(
     def recording(*args, **kwargs):
         mappers.append(kwargs.get("mapper"))
         fit = best_of_starts(*args, **kwargs)
-        return dataclasses.replace(fit, extra={**fit.extra, "recorded": True})
+        return dataclasses.replace(fit, notes=[*fit.notes, "recorded"])
 
     monkeypatch.setattr(estimator, "best_of_starts", recording)
     monkeypatch.setattr(estimator, "NOISE_RATIO", 0.0)  # every fit is above the "floor"
@@ -208,9 +217,9 @@ def test_a_lone_familys_starts_are_screened_on_the_threads_with_the_same_answer(
         opts = {"families": ["dahl"], "close_loop": False, "heldout": False, "n_jobs": jobs}
         fits[jobs] = Discovery(**opts).fit(data).family_fits_["dahl"]
     assert len(mappers) == 2 and all(m is not None for m in mappers)
-    assert all(f.extra.get("recorded") for f in fits.values())  # the estimator keeps it
-    assert len(fits[1].extra["starts"]) > 1  # it was fitted from more starts
-    assert fits[2].extra["starts"] == fits[1].extra["starts"]
+    assert all("recorded" in f.notes for f in fits.values())  # the estimator keeps it
+    assert len(fits[1].starts) > 1  # it was fitted from more starts
+    assert fits[2].starts == fits[1].starts
     assert fits[2].params == fits[1].params and fits[2].rss == fits[1].rss
 
 

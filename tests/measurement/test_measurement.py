@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from hystdisc.cli import main
-from hystdisc.closing import candidate_effects
+from hystdisc.closing import EffectSkipped, candidate_effects
 from hystdisc.data import Dataset, Run
 from hystdisc.discovery import FAMILY_SHAPE
 from hystdisc.estimator import Discovery
@@ -110,9 +110,7 @@ def test_delay_candidate_for_two_channel_experiments_only():
     rd = Discovery(model="dahl", heldout=False, shapes=(FAMILY_SHAPE["dahl"],)).fit(release)
     cands, skipped = candidate_effects(rd.family_fits_["dahl"], rd.fit_data_)
     assert "channel_delay" not in cands
-    assert {"name": "channel_delay", "reason": "a release experiment records one channel"} in (
-        skipped
-    )
+    assert EffectSkipped("channel_delay", "a release experiment records one channel") in skipped
 
 
 def test_delayed_is_a_fractional_shift():

@@ -172,15 +172,15 @@ def test_band_limited_noise_is_not_structure(driven_band_limited):
     est = measurement_noise(ds.runs, "driven")
     fs = ds.runs[0].fs
     res, unexplained, _ = assess_residual(noises, fs, est.std, noise_samples=est.samples)
-    assert res["whiteness_test"] == "noise spectrum"
-    assert res["whiteness_p"] >= 0.01 and not unexplained
-    assert res["ljung_box_p"] < 1e-10  # coloured: Ljung-Box alone calls it structure
+    assert res.whiteness_test == "noise spectrum"
+    assert res.whiteness_p >= 0.01 and not unexplained
+    assert res.ljung_box_p < 1e-10  # coloured: Ljung-Box alone calls it structure
     assert assess_residual(noises, fs, est.differences)[1] is True  # the old verdict
     tone = [
         e + SIGMA * np.sin(2 * np.pi * 60.0 * r.t) for e, r in zip(noises, ds.runs, strict=True)
     ]
     res, unexplained, text = assess_residual(tone, fs, est.std, noise_samples=est.samples)
-    assert unexplained and res["dominant_hz"] == pytest.approx(60.0, abs=2.0)
+    assert unexplained and res.dominant_hz == pytest.approx(60.0, abs=2.0)
     assert "noise's own spectrum" in text
 
 

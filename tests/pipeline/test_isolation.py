@@ -13,7 +13,7 @@ import json
 import numpy as np
 import pytest
 
-import hystdisc.closing.loop as loop_module
+import hystdisc.closing.rounds as rounds_module
 import hystdisc.pipeline.families as families
 from hystdisc.cli import main
 from hystdisc.data import write_csv
@@ -67,14 +67,14 @@ def test_every_family_failing_is_one_error_naming_each_reason(dahl_data, monkeyp
 
 
 def test_a_failing_effect_is_dropped_and_the_loop_goes_on(dahl_data, monkeypatch):
-    real = loop_module.refit_with
+    real = rounds_module.refit_with
 
     def refit(data, fit, name, *args, **kwargs):
         if name == "coulomb":
             raise np.linalg.LinAlgError("Singular matrix")
         return real(data, fit, name, *args, **kwargs)
 
-    monkeypatch.setattr(loop_module, "refit_with", refit)
+    monkeypatch.setattr(rounds_module, "refit_with", refit)
     d = Discovery(model="dahl").fit(dahl_data)
     assert d.failed_["effect coulomb"] == "the computation failed (LinAlgError: Singular matrix)"
     assert "coulomb" not in d.effects_

@@ -146,6 +146,27 @@ def test_records_built_in_code_write_every_attribute():
     assert ParameterResult.from_dict(p.to_dict()) == p
 
 
+def test_records_made_in_code_are_rounded_and_keep_the_order_given():
+    p = ParameterResult.make(ci95=(float("nan"), 2 / 3), value=1 / 3)
+    assert p.to_dict() == {"ci95": [None, 0.6666666667], "value": 0.3333333333}
+    assert "identifiable" not in p and p.identifiable is True  # not given: not written
+    assert ParameterResult.from_dict(p.to_dict()) == p
+    # a key that is no attribute is kept in extra, in its place
+    t = EffectTrial.make(name="offset", future_key=1, accepted=True)
+    assert t.extra == {"future_key": 1} and list(t.to_dict()) == ["name", "future_key", "accepted"]
+
+
+def test_a_fit_in_memory_is_its_file(small_fit):
+    """The record built in the process (no table parsed back) is the one its file reads
+    as: the same values, rounded alike, the same keys in the same order."""
+    disc, _ = small_fit
+    res = disc.results_
+    again = Results.from_json(res.to_json())
+    assert again == res
+    assert again.to_json() == res.to_json()
+    assert res.diagnosis and list(again.diagnosis[0]) == list(res.diagnosis[0])
+
+
 def test_save_is_atomic_and_refuses_overwrite(tmp_path):
     res = Results.load(FIXTURES / "results_schema1_no_loop.json")
     path = res.save(tmp_path / "r.json")

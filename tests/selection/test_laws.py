@@ -148,7 +148,7 @@ def test_the_chosen_law_is_the_final_model(saturating_case):
     )
     # leave one condition out, as the loop reports it: at the noise (linear laws: not)
     assert final.heldout_rms < 1.1 * NOISE < 2 * NOISE < st.linear.heldout_rms
-    skipped = {s["name"]: s["reason"] for s in d.loop_.skipped}
+    skipped = {s.name: s.reason for s in d.loop_.skipped}
     assert (
         "the staged fit chose the current laws (alpha_1 saturating" in skipped["current_saturation"]
     )
