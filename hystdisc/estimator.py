@@ -182,6 +182,8 @@ class Discovery(BaseEstimator):
         The tasks that failed and were dropped (a family, a start, held-out folds, an
         effect, the staged fit), each with its one-line reason: the run went on without
         them (``failed`` in ``results.json``).
+    open_library_ : ResidualTerms or None
+        The open library's terms in a residual the catalogue left (None: none left).
     results_ : Results
         The ``results.json`` contract.
 

@@ -15,6 +15,11 @@ from collections.abc import Callable
 
 from hystdisc.closing import LoopResult, close_loop
 from hystdisc.closing.again import compare_again
+from hystdisc.closing.open_library import (
+    ResidualTerms,
+    regress_output_residual,
+    regress_residual,
+)
 from hystdisc.closing.reselect import Context
 from hystdisc.closing.shift import shift_restart
 from hystdisc.errors import HystdiscWarning
@@ -57,6 +62,18 @@ def _loop(state: State, fit: OEFit, restart: Callable | None) -> LoopResult:
     )
 
 
+def open_library(state: State, fit: OEFit) -> ResidualTerms | None:
+    """The open library on the final model's residual (:mod:`hystdisc.closing.open_library`):
+    the force residual of a driven test (any family), else the equation residual of a
+    model with a term form; None for a state-space model of a test that measures no force."""
+    state.say("closing the loop: the residual regressed on the open library")
+    if state.fd.exp.output == "torque":
+        return regress_output_residual(state.fd, fit, seed=state.options.seed)
+    if fit.is_system:
+        return None
+    return regress_residual(state.eq, fit.term_part, seed=state.options.seed)
+
+
 def close(state: State, fit_family: Callable) -> None:
     """The loop, the comparison again, equal fits, the final model and its admissibility.
 
@@ -92,6 +109,10 @@ def close(state: State, fit_family: Callable) -> None:
         n for n, b in state.bics.items() if b - ref < EQUAL_FIT_BIC and n != state.family
     )
     state.final_fit = selected if state.loop is None else state.loop.fit
+    if state.loop is not None and state.loop.unexplained:
+        state.open_library = state.failures.guard(
+            "open library", open_library, state, state.final_fit
+        )
     kept = [v.entry.name for v in state.measured if v.entry is not None]
     state.effects = kept + ([] if state.loop is None else list(state.loop.effects))
     final = state.final_fit

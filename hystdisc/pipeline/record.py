@@ -180,6 +180,8 @@ def build_results(state: State) -> Results:
     if state.delay_scan is not None:  # the delay between the channels, scanned by stage 1
         notes = [v.note for v in state.measured]
         data["delay_scan"] = {**state.delay_scan.to_dict(), "notes": notes}
+    if state.open_library is not None:  # the open library on a residual the catalogue left
+        data["open_library"] = state.open_library.to_dict()
     if state.reselection is not None:  # the families compared again with the rig's effects
         data["reselection"] = state.reselection.to_dict()
     if state.reduction is not None:  # the selected family reduced to a smaller one + effects

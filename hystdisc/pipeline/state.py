@@ -16,6 +16,7 @@ import numpy as np
 
 from hystdisc.closing import LoopResult
 from hystdisc.closing.measured import MeasuredVerdict
+from hystdisc.closing.open_library import ResidualTerms
 from hystdisc.closing.reduction import Reduction
 from hystdisc.closing.reselect import Reselection
 from hystdisc.data import Dataset
@@ -38,7 +39,7 @@ FITTED = (
     "stage1", "discovered_shape", "discovered_name", "discovered", "terms", "family_fits",
     "discovered_fit", "family", "declared", "equal_fits", "loop", "final_fit",
     "reselection", "reduction", "effects", "final_admissibility", "outliers", "staged",
-    "delay_scan", "measured", "failed",
+    "delay_scan", "measured", "failed", "open_library",
 )  # fmt: skip
 
 
@@ -98,6 +99,8 @@ class State:
     final_fit: OEFit | None = None
     effects: list[str] = field(default_factory=list)
     final_admissibility: Any = None
+    # what the open library finds in a residual the catalogue leaves (or None)
+    open_library: ResidualTerms | None = None
     failed: dict[str, str] = field(default_factory=dict)
 
     # -- what the stages derive

@@ -174,6 +174,29 @@ class StageSections:
             self.p("Final residual: " + residual_sentence(res) + ".")
         if d.unexplained:
             self.p("Unexplained: " + (d.unexplained_text or "structure remains"), cls="bad")
+        lib = d.open_library
+        if lib and lib.get("terms"):
+            self.p(
+                f"The residual regressed on the open library ({lib['candidates']} candidate "
+                f"forces, stability selection): the stable terms explain "
+                f"{100 * lib['explained']:.0f} % of it. Evidence, not a verdict: a term is "
+                "part of the model only once a refit predicts held-out tests better."
+            )
+            self.table(
+                ["term", "coefficient", "inclusion", "catalogued effect"],
+                [
+                    [
+                        t["name"],
+                        num(t["coefficient"], ".4g"),
+                        num(t["inclusion"], ".2f"),
+                        t["effect"] or "– (discovered)",
+                    ]
+                    for t in lib["terms"]
+                ],  # fmt: skip
+                left=1,
+            )
+            if lib.get("equation"):
+                self.p("Discovered: " + lib["equation"])
         self._spectrum_figure(plot_residual_spectrum)
         self._residual_map()
 

@@ -224,6 +224,10 @@ class Results(Record):
         (:class:`hystdisc.discovery.delay.DelayScan`: ``tau``, ``dbic``, ``found``,
         ``reach``) and, when one was found and every family carried it, the verdict on
         the selected family (``notes``); None when not scanned.
+    open_library : dict or None
+        The open library's stable ``terms`` in a residual the catalogue left, their
+        ``effects``, the share ``explained`` and the discovered ``equation``
+        (:class:`hystdisc.closing.open_library.ResidualTerms`); None when not run.
     failed : dict of str to str
         The tasks of the discovery that failed and were dropped, each with its one-line
         reason (a family, ``<family> start '<label>'``, ``<family> held-out folds``,
@@ -282,6 +286,7 @@ class Results(Record):
     reselection: dict[str, Any] | None = None
     reduction: dict[str, Any] | None = None
     delay_scan: dict[str, Any] | None = None
+    open_library: dict[str, Any] | None = None
     failed: dict[str, str] = field(default_factory=dict)
     extra: dict[str, Any] = field(default_factory=dict, repr=False)
 
@@ -561,23 +566,11 @@ class Results(Record):
         return text.parameter_table(self, family)
 
     def effects_table(self) -> list[str]:
-        """Lines of the closing-the-loop table (empty when the loop did not run).
-
-        Returns
-        -------
-        list of str
-            The table's lines.
-        """
+        """The lines of the closing-the-loop table (empty when the loop did not run)."""
         return text.effects_table(self)
 
     def measurement_lines(self) -> list[str]:
-        """How the noise was estimated and the encoder of a quantized angle, one line each.
-
-        Returns
-        -------
-        list of str
-            The lines.
-        """
+        """How the noise was estimated and the encoder of a quantized angle, a line each."""
         return text.measurement_lines(self)
 
     def report(self) -> str:

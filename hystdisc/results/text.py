@@ -190,6 +190,41 @@ def _residual_lines(res: Results) -> list[str]:
     ]
     if res.unexplained:
         out.append(f"  Unexplained: {res.unexplained_text or 'structure remains'}")
+    out += ["  " + line for line in open_library_lines(res.open_library)]
+    return out
+
+
+def open_library_lines(lib: dict | None) -> list[str]:
+    """The open library's finding, a line each: its stable terms, their inclusion and
+    the catalogued effect each belongs to, and the discovered effect's equation.
+
+    Examples
+    --------
+    >>> lib = {"candidates": 31, "explained": 0.88, "equation": "T_extra = 0.05*[theta_dot>0]",
+    ...        "terms": [{"name": "[theta_dot>0]", "coefficient": 0.05, "inclusion": 1.0,
+    ...                   "effect": ""}]}
+    >>> for line in open_library_lines(lib):
+    ...     print(line)
+    Open library (31 candidates, stability selection): 1 stable term explains 88 % of it
+      [theta_dot>0]: 0.05 (inclusion 1.00, discovered)
+      T_extra = 0.05*[theta_dot>0] (evidence, not a verdict: refit and held out before use)
+    """
+    if not lib:
+        return []
+    terms = lib.get("terms") or []
+    head = f"Open library ({lib.get('candidates', 0)} candidates, stability selection): "
+    if not terms:
+        return [head + "no stable term"]
+    n = len(terms)
+    out = [
+        head + f"{n} stable term{'s' if n > 1 else ''} explain{'' if n > 1 else 's'} "
+        f"{100 * float(lib.get('explained', 0.0)):.0f} % of it"
+    ]
+    for t in terms:
+        who = f"-> {t['effect']}" if t.get("effect") else "discovered"
+        out.append(f"  {t['name']}: {t['coefficient']:.4g} (inclusion {t['inclusion']:.2f}, {who})")
+    if lib.get("equation"):
+        out.append(f"  {lib['equation']} (evidence, not a verdict: refit and held out before use)")
     return out
 
 
@@ -367,6 +402,9 @@ def html_summary(res: Results) -> str:
     eff_html = f"<b>Accepted effects</b><ul>{eff}</ul>" if eff else "<i>No effect accepted.</i>"
     if res.unexplained:
         eff_html += f"<br><b>Unexplained:</b> {e(str(res.unexplained_text or ''))}"
+    lib = open_library_lines(res.open_library)
+    if lib:
+        eff_html += "<br>" + "<br>".join(e(x) for x in lib)
     cd = res.current_dependence
     if cd and not cd.get("identifiable", True):
         eff_html += f"<br><b>Current dependence not identifiable:</b> {e(str(cd.get('note')))}"
