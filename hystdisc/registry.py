@@ -59,6 +59,9 @@ EFFECTS: dict[str, Any] = {
     "channel_delay": "hystdisc.models.effects:CHANNEL_DELAY",
     "series_compliance": "hystdisc.models.wheel:SERIES_COMPLIANCE",
     "shear_thinning": "hystdisc.models.effects:SHEAR_THINNING",
+    "bias": "hystdisc.models.effects:BIAS",
+    "current_bias": "hystdisc.models.effects:CURRENT_BIAS",
+    "asymmetric_damping": "hystdisc.models.effects:ASYMMETRIC_DAMPING",
 }
 
 #: Experiment name -> ``module:attribute`` of its experiment object.

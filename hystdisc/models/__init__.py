@@ -9,7 +9,7 @@ from __future__ import annotations
 from collections.abc import Iterator, Mapping
 
 from hystdisc import registry
-from hystdisc.models.effects import Effect
+from hystdisc.models.effects import Effect, apply_effects
 from hystdisc.models.families.base import CURRENT_LAWS, LAW_SUFFIX, Family
 from hystdisc.models.model import Model
 from hystdisc.models.params import BIG, RIG_PARAMS, Param, check_params
@@ -83,6 +83,7 @@ __all__ = [
     "Model",
     "Param",
     "TermModel",
+    "apply_effects",
     "check_params",
     "current_law",
     "effective_current",
