@@ -62,6 +62,7 @@ EFFECTS: dict[str, Any] = {
     "bias": "hystdisc.models.effects:BIAS",
     "current_bias": "hystdisc.models.effects:CURRENT_BIAS",
     "asymmetric_damping": "hystdisc.models.effects:ASYMMETRIC_DAMPING",
+    "asymmetric_yield": "hystdisc.models.effects:ASYMMETRIC_YIELD",
 }
 
 #: Experiment name -> ``module:attribute`` of its experiment object.

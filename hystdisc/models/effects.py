@@ -454,3 +454,50 @@ admissible ``|r_c| <= 1`` whatever the family's ``c`` (``|theta_dot|`` does no n
 over a symmetric cycle, so the energy check of the admissibility could not catch a
 negative damping in one direction: the bounds do). A state-space family's damping is not
 in the term form, so the effect adds nothing to one."""
+
+
+#: The term of :data:`ASYMMETRIC_YIELD`: ``|z|``, a hysteretic torque even in ``z`` (with
+#: ``z`` it is a yield force that differs in tension and compression).
+ABS_Z = "|z|"
+
+
+def _yield_share_start(c: Mapping[str, float], ks: float) -> dict[str, float]:
+    """``r_y`` from stage-1 coefficients: the ``|z|`` torque over the hysteretic torque at
+    the middle of a 0-1 A range, kept within its bounds (as :func:`_share_start`)."""
+    alpha = c.get("z", 0.0) + 0.5 * c.get("i*z", 0.0)
+    share = c.get(ABS_Z, 0.0) / alpha if alpha > 0.0 else 0.0
+    return {"r_y": float(np.clip(share, -1.0, 1.0))}
+
+
+ASYMMETRIC_YIELD = Effect(
+    "asymmetric_yield",
+    (
+        Param(
+            "r_y",
+            "1",
+            -1.0,
+            1.0,
+            0.3,
+            "asymmetry of the hysteretic (yield) torque alpha: (1 + r_y) alpha for z > 0 "
+            "(tension), (1 - r_y) alpha for z < 0 (compression)",
+        ),
+    ),
+    (ABS_Z,),
+    "a yield force that differs in tension and compression (a single-ended piston rod, "
+    "a valve that favours one direction), r_y * alpha(i) * |z| with alpha(i) the model's "
+    "hysteretic torque and its current law",
+    lambda p, ks: {},
+    _yield_share_start,
+    "a yield force that would be negative in one direction: a force that does not follow "
+    "the hysteretic state (a force bias: bias, current_bias)",
+    scaled=(("r_y", ABS_Z, "z"),),
+)
+"""A share ``r_y`` of the model's hysteretic torque ``alpha(i) z`` that is even in ``z``:
+``alpha(i) z (1 + r_y sign(z))``. Where ``z`` saturates (the post-yield branches) the
+yield force is ``(1 + r_y) alpha`` in tension and ``(1 - r_y) alpha`` in compression, both
+non-negative for the admissible ``|r_y| <= 1`` whatever the family's ``alpha`` (like
+``|theta_dot|``, ``|z|`` does no net work over a symmetric cycle). A force bias shifts
+both branches alike at every state; this one only where ``z`` is away from 0, so the two
+differ at the velocity's reversals. Families without a hysteretic state (Bingham, whose
+yield is ``sign(theta_dot)``) do not carry it; a state-space family's hysteretic torque is
+not in the term form, so the effect adds nothing to one."""

@@ -54,7 +54,7 @@ def n_sub(c, b, n, J, th, w, z, h, eps, mech, u, ratio, min_sub, max_sub):
             # resolve the fast sign transition in time (its rate is acc / eps)
             lam += sech2 * acc / eps
         dtdth = abs(c[0] + 3.0 * c[6] * th * th)
-        dtdz = abs(c[2] + c[3] * abs(w))
+        dtdz = abs(c[2] + c[3] * abs(w)) + abs(c[11])
         lam += dtdw / J + math.sqrt(dtdth / J) + math.sqrt(dtdz * dgdw / J)
     m = int(math.ceil(h * lam / ratio))
     if m < min_sub:

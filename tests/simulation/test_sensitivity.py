@@ -128,7 +128,7 @@ def _everything():
     tm = Model("bouc-wen-std").to_terms()
     tm.torque.update({"theta": 150.0, "theta^3": 30.0, "1": 0.1, "sign(theta_dot)": 0.2})
     tm.torque.update({"theta_dot*|theta_dot|": 0.05, "sign(theta_dot)*|theta_dot|^m": 0.3})
-    tm.torque.update({"|theta_dot|*z": 0.2, "|theta_dot|": 0.15, "i": 0.05})
+    tm.torque.update({"|theta_dot|*z": 0.2, "|theta_dot|": 0.15, "i": 0.05, "|z|": -0.1})
     tm.hysteresis.update({"|theta_dot|*z": -1.0, "|theta_dot|*|z|^n": 0.5})
     tm.n = 1.6
     return tm
@@ -240,6 +240,8 @@ def test_exact_jacobian_matches_central_differences(family, experiment, fixed_su
         ("shear_thinning", "driven"),
         ("asymmetric_damping", "release"),
         ("asymmetric_damping", "driven"),
+        ("asymmetric_yield", "release"),
+        ("asymmetric_yield", "driven"),
         ("bias", "forced"),
         ("current_bias", "driven"),
     ],
