@@ -224,5 +224,5 @@ def test_nothing_is_claimed_without_an_asymmetry():
     disc = _driven(None, 0.0, 1)
     assert disc.effects_ == [], disc.results_.effects_tried
     assert disc.results_.unexplained is False
-    skipped = {s["name"] for s in disc.loop_.skipped}
+    skipped = {s.name for s in disc.loop_.skipped}
     assert NAME not in skipped and YIELD not in skipped  # both were candidates

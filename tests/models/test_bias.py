@@ -112,7 +112,7 @@ def _check_found(disc, name: str, truth: dict[str, float]) -> None:
     res = disc.results_
     assert disc.effects_ == [name], res.effects_tried
     # no rig spring: its neutral angle (offset) is not what the loop tried
-    skipped = {s["name"]: s["reason"] for s in disc.loop_.skipped}
+    skipped = {s.name: s.reason for s in disc.loop_.skipped}
     assert "no rig spring" in skipped["offset"]
     (entry,) = res.effects
     assert entry["rms_before"] > 5 * NOISE
@@ -145,5 +145,5 @@ def test_nothing_is_claimed_without_a_bias():
     assert disc.effects_ == [], res.effects_tried
     assert res.unexplained is False
     # both were candidates (no spring, three current levels), not left out
-    skipped = {s["name"] for s in disc.loop_.skipped}
+    skipped = {s.name for s in disc.loop_.skipped}
     assert BIAS not in skipped and CURRENT_BIAS not in skipped
