@@ -59,6 +59,10 @@ EFFECTS: dict[str, Any] = {
     "channel_delay": "hystdisc.models.effects:CHANNEL_DELAY",
     "series_compliance": "hystdisc.models.wheel:SERIES_COMPLIANCE",
     "shear_thinning": "hystdisc.models.effects:SHEAR_THINNING",
+    "bias": "hystdisc.models.effects:BIAS",
+    "current_bias": "hystdisc.models.effects:CURRENT_BIAS",
+    "asymmetric_damping": "hystdisc.models.effects:ASYMMETRIC_DAMPING",
+    "asymmetric_yield": "hystdisc.models.effects:ASYMMETRIC_YIELD",
 }
 
 #: Experiment name -> ``module:attribute`` of its experiment object.

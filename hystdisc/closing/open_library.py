@@ -213,7 +213,7 @@ def _open_terms(levels: Sequence[float], w_max: float) -> dict[str, Column]:
         out[f"i*d/dt[play(theta,{r:g}A)-theta]"] = lambda th, w, z, i, t, f=lost: (
             i * f(th, w, z, i, t)
         )
-    return out
+    return {k: f for k, f in out.items() if k not in TORQUE_TERMS}  # catalogued: one name
 
 
 def candidate_library(eq, tm: TermModel) -> tuple[list[str], np.ndarray, np.ndarray, np.ndarray]:

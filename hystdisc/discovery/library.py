@@ -34,7 +34,7 @@ import numpy as np
 from pysindy.feature_library.base import BaseFeatureLibrary, x_sequence_or_item
 from sklearn.utils.validation import check_is_fitted
 
-from hystdisc.models import TORQUE_TERM_NAMES, TORQUE_TERMS, Z_TORQUE_TERMS
+from hystdisc.models import EVEN_Z_TORQUE_TERMS, TORQUE_TERM_NAMES, TORQUE_TERMS, Z_TORQUE_TERMS
 from hystdisc.models.shapes import SHAPES
 
 __all__ = [
@@ -149,8 +149,10 @@ class TorqueLibrary(BaseFeatureLibrary):
         F : ndarray
             The design with its z-free columns filled (``out`` when given); the ``z``
             columns are left for :meth:`refresh_z`.
-        z_factors : list of (int, ndarray)
-            For each ``z`` column, its index and its value at ``z = 1``.
+        z_factors : list of (int, ndarray, bool)
+            For each ``z`` column, its index, its value at ``z = 1`` and whether it is
+            that factor times ``|z|`` (:data:`~hystdisc.models.EVEN_Z_TORQUE_TERMS`)
+            rather than times ``z``.
         """
         check_is_fitted(self)
         th, w, _, i = self._columns(x)
@@ -158,22 +160,28 @@ class TorqueLibrary(BaseFeatureLibrary):
         z_factors = []
         for j, t in enumerate(self.terms):
             if t in Z_TORQUE_TERMS:
-                # a z term is its z-free factor (1, |theta_dot|, i, i^2) times z
-                z_factors.append((j, TORQUE_TERMS[t](th, w, np.ones_like(th), i)))
+                # a z term is its z-free factor (1, |theta_dot|, i, i^2) times z (or |z|)
+                factor = TORQUE_TERMS[t](th, w, np.ones_like(th), i)
+                z_factors.append((j, factor, t in EVEN_Z_TORQUE_TERMS))
             else:
                 F[:, j] = TORQUE_TERMS[t](th, w, None, i)
         return F, z_factors
 
     @staticmethod
     def refresh_z(
-        F: np.ndarray, z: np.ndarray, z_factors: Sequence[tuple[int, np.ndarray]]
+        F: np.ndarray, z: np.ndarray, z_factors: Sequence[tuple[int, np.ndarray, bool]]
     ) -> np.ndarray:
         """Write the ``z`` columns of ``F`` (from :meth:`transform_z_free`) for ``z``.
 
         Returns ``F``, overwritten in place.
         """
-        for j, factor in z_factors:
-            F[:, j] = factor * z
+        az = None
+        for j, factor, even in z_factors:
+            if even:
+                az = np.abs(z) if az is None else az
+                F[:, j] = factor * az
+            else:
+                F[:, j] = factor * z
         return F
 
     def get_feature_names(self, input_features=None) -> list[str]:

@@ -28,6 +28,7 @@ from hystdisc.models import (
     Family,
     Param,
     TermModel,
+    apply_effects,
     get_family,
 )
 from hystdisc.models.system import StateSpaceModel
@@ -173,9 +174,7 @@ class FamilyParametrization(Parametrization):
         tm = self.family.apply_laws(self.family.to_terms(p), p)
         tm.torque["theta"] = tm.torque.get("theta", 0.0) + p["k_s"]
         tm.J = p.get("J", 1.0)
-        for e in self.effects:
-            EFFECTS[e].apply(tm, p, p["k_s"])
-        return tm
+        return apply_effects(tm, [EFFECTS[e] for e in self.effects], p, p["k_s"])
 
 
 class TermParametrization(Parametrization):

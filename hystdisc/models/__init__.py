@@ -9,11 +9,12 @@ from __future__ import annotations
 from collections.abc import Iterator, Mapping
 
 from hystdisc import registry
-from hystdisc.models.effects import Effect
+from hystdisc.models.effects import Effect, apply_effects
 from hystdisc.models.families.base import CURRENT_LAWS, LAW_SUFFIX, Family
 from hystdisc.models.model import Model
 from hystdisc.models.params import BIG, RIG_PARAMS, Param, check_params
 from hystdisc.models.terms import (
+    EVEN_Z_TORQUE_TERMS,
     HYSTERESIS_TERM_NAMES,
     HYSTERESIS_TERMS,
     LAW_GROUPS,
@@ -66,6 +67,7 @@ __all__ = [
     "BIG",
     "CURRENT_LAWS",
     "EFFECTS",
+    "EVEN_Z_TORQUE_TERMS",
     "FAMILIES",
     "HYSTERESIS_TERMS",
     "HYSTERESIS_TERM_NAMES",
@@ -83,6 +85,7 @@ __all__ = [
     "Model",
     "Param",
     "TermModel",
+    "apply_effects",
     "check_params",
     "current_law",
     "effective_current",

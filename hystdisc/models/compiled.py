@@ -32,8 +32,14 @@ from hystdisc.models.terms import SHEAR_TERM, TermModel
 
 # per-run base coefficients, after folding in the current
 #   0 theta, 1 theta_dot, 2 z, 3 |theta_dot| z, 4 sign(theta_dot), 5 theta_dot|theta_dot|,
-#   6 theta^3, 7 constant, 8 sign(theta_dot)|theta_dot|^m (shear thinning), 9 its exponent m
-N_BASE = 10
+#   6 theta^3, 7 constant (its current law: the term i), 8 sign(theta_dot)|theta_dot|^m
+#   (shear thinning), 9 its exponent m, 10 |theta_dot| (asymmetric damping), 11 |z|
+#   (asymmetric yield)
+# A change of this layout must change every module whose compiled functions use it too
+# (models/system.py, wheel.py, families/spencer.py, families/tanh.py, simulation/kernels.py,
+# sensitivity.py): numba keeps a function's cache by its own file's stamp, and a cache made
+# before the change would be reused with the old layout (or delete the __pycache__/*.nb?)
+N_BASE = 12
 
 
 def base_coefficients(tm: TermModel, current: float) -> np.ndarray:
@@ -67,9 +73,11 @@ def base_coefficients(tm: TermModel, current: float) -> np.ndarray:
     c[4] = law("sign(theta_dot)")
     c[5] = g("theta_dot*|theta_dot|", 0.0)
     c[6] = g("theta^3", 0.0)
-    c[7] = g("1", 0.0)
+    c[7] = g("1", 0.0) + i * g("i", 0.0)
     c[8] = g(SHEAR_TERM, 0.0)
     c[9] = tm.m
+    c[10] = law("|theta_dot|")
+    c[11] = law("|z|")
     return c
 
 
@@ -93,7 +101,8 @@ def vector_rate(p, w, z):
 @numba.njit(cache=True, inline="always")
 def term_torque(c, th, w, z, eps):
     aw = abs(w)
-    out = c[0] * th + c[1] * w + c[2] * z + c[3] * aw * z + c[5] * w * aw + c[7]
+    out = c[0] * th + c[1] * w + c[2] * z + c[3] * aw * z + c[5] * w * aw + c[7] + c[10] * aw
+    out += c[11] * abs(z)
     if c[4] != 0.0:  # tanh and the cube are the costly terms: skip them when absent
         out += c[4] * math.tanh(w / eps)
     if c[6] != 0.0:
@@ -161,8 +170,8 @@ def torque_grad(c, th, w, z, eps, need, g):
     aw = abs(w)
     sw = _sign(w)
     dth = c[0]
-    dw = c[1] + c[3] * sw * z + 2.0 * c[5] * aw
-    dz = c[2] + c[3] * aw
+    dw = c[1] + c[3] * sw * z + 2.0 * c[5] * aw + c[10] * sw
+    dz = c[2] + c[3] * aw + c[11] * _sign(z)
     g[4] = 0.0
     if c[4] != 0.0 or need[4]:
         tnh = math.tanh(w / eps)
@@ -187,6 +196,8 @@ def torque_grad(c, th, w, z, eps, need, g):
     g[5] = w * aw
     g[6] = th * th * th
     g[7] = 1.0
+    g[10] = aw
+    g[11] = abs(z)
     return dth, dw, dz
 
 

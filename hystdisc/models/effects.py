@@ -5,7 +5,7 @@ See doc/design.rst section 6 (closing the loop) for the catalogue and how it is 
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -54,7 +54,7 @@ class Structure:
 
 
 #: The roles an effect may declare (:attr:`Effect.roles`).
-ROLES = ("spring", "current_law", "measurement")
+ROLES = ("spring", "current_law", "measurement", "no_spring")
 
 
 @dataclass(frozen=True)
@@ -103,7 +103,18 @@ class Effect:
         terms are linear in the angle: it means something only on a rig with a spring),
         ``"current_law"`` (a current law that is not linear: the staged fit, which chooses
         the laws, decides it), ``"measurement"`` (it acts on the record, not on the
-        damper: every family carries it alike, and so does the staged fit's each level).
+        damper: every family carries it alike, and so does the staged fit's each level),
+        ``"no_spring"`` (on a rig with a spring it is a spring effect already, the same
+        model in other words: a constant force is the spring's neutral angle, ``offset``;
+        it is tried only where the rig has no spring).
+    scaled : tuple of (str, str, str)
+        Terms whose coefficient is a share of a force the model already has:
+        ``(parameter, term, base)`` adds the parameter's value times the model's
+        coefficient of ``base`` to that of ``term``, and the same for their current laws
+        (``i*``, ``i^2*`` and a saturating law's current). Bounds on such a share keep
+        the sum admissible whatever the model's values (a damping that differs in tension
+        and compression stays non-negative in both for ``|r_c| <= 1``). Such effects are
+        applied after the others (:func:`apply_effects`): the share is of the whole force.
     shift_param : str
         The parameter that shifts the measured angle (the spring's neutral angle): the
         model plus the effect is restarted from the family fitted on the shifted data
@@ -149,6 +160,7 @@ class Effect:
     roles: tuple[str, ...] = ()
     shift_param: str = ""
     delay_param: str = ""
+    scaled: tuple[tuple[str, str, str], ...] = ()
 
     def has_role(self, role: str) -> bool:
         """The effect has ``role`` (one of :data:`ROLES`).
@@ -173,6 +185,14 @@ class Effect:
         """
         for k, v in self.to_torque(values, k_s).items():
             tm.torque[k] = tm.torque.get(k, 0.0) + v
+        for name, term, base in self.scaled:
+            share = float(values[name])
+            for law in ("", "i*", "i^2*"):
+                if law + base in tm.torque:
+                    a = share * tm.torque[law + base]
+                    tm.torque[law + term] = tm.torque.get(law + term, 0.0) + a
+            if base in tm.saturation:
+                tm.saturation[term] = tm.saturation[base]
         for name, attr in self.exponents:
             setattr(tm, attr, float(values[name]))
         if self.delay_param:
@@ -200,6 +220,25 @@ class Effect:
         (['c_q'], [])
         """
         return [p.name for p in self.params if not p.lower <= values.get(p.name, 0.0) <= p.upper]
+
+
+def apply_effects(
+    tm: TermModel, effects: Iterable[Effect], values: Mapping[str, float], k_s: float
+) -> TermModel:
+    """Add ``effects`` at ``values`` to the term model ``tm`` (in place), those that
+    scale a force of the model (:attr:`Effect.scaled`) last, so that their share is of
+    the force with every other effect in it.
+
+    Examples
+    --------
+    >>> tm = TermModel({"theta_dot": 1.0})
+    >>> vals = {"r_c": 0.5, "c_i": 2.0}
+    >>> apply_effects(tm, [ASYMMETRIC_DAMPING, CURRENT_VISCOUS], vals, 0.0).torque
+    {'theta_dot': 1.0, 'i*theta_dot': 2.0, '|theta_dot|': 0.5, 'i*|theta_dot|': 1.0}
+    """
+    for eff in sorted(effects, key=lambda e: bool(e.scaled)):
+        eff.apply(tm, values, k_s)
+    return tm
 
 
 def _one_term_effect(name: str, param: Param, term: str, doc: str, hint: str = "") -> Effect:
@@ -319,3 +358,146 @@ SHEAR_THINNING = Effect(
     "yield torque too large at low velocity",
     exponents=(("m_st", "m"),),
 )
+
+
+BIAS = Effect(
+    "bias",
+    (
+        Param(
+            "f_0",
+            "N*m",
+            -BIG,
+            BIG,
+            0.2,
+            "force bias not tied to a spring (a gas accumulator's force, a load cell's zero)",
+        ),
+    ),
+    ("1",),
+    "a constant force not tied to a spring, f_0 (a gas accumulator's force, a zero of the "
+    "force sensor): the same at every velocity and angle, so the yield force differs in "
+    "tension and compression by 2 f_0",
+    lambda p, ks: {"1": p["f_0"]},
+    lambda c, ks: {"f_0": c.get("1", 0.0)},
+    "",
+    roles=("no_spring",),
+)
+"""A constant torque ``f_0``. Where the rig has a spring it is the spring's neutral angle
+(``offset``, ``k_s * theta_off``), so it is tried only where it has none (role
+``"no_spring"``): a driven characterization machine."""
+
+CURRENT_BIAS = Effect(
+    "current_bias",
+    (
+        Param("f_0a", "N*m", -BIG, BIG, 0.2, "force bias at 0 A (of current_bias)"),
+        Param("f_0i", "N*m/A", -BIG, BIG, -0.2, "growth of the force bias with the current"),
+    ),
+    ("1", "i"),
+    "a force bias that differs per current level, f_0a + f_0i * i (a field-dependent "
+    "zero of the force sensor, a magnetized part's pull)",
+    lambda p, ks: {"1": p["f_0a"], "i": p["f_0i"]},
+    lambda c, ks: {"f_0a": c.get("1", 0.0), "f_0i": c.get("i", 0.0)},
+    "",
+    significance=("f_0i",),
+    roles=("no_spring",),
+)
+"""The bias with its current law, ``f_0a + f_0i * i``, one effect: a bias whose mean
+over the currents is small is not found by its constant or its slope alone (the loop adds
+one effect at a time and does not try a rejected one again). It is there when its slope
+is significant (``significance``); a bias the current does not change is :data:`BIAS`
+(one parameter less). One parameter per current level would fit each level's bias but
+predict no other level (the loop accepts an effect by its error on held-out conditions,
+currents among them), and the parametrizations have no parameters per run but the
+initial states: the bias is a law of the current, linear like the families' laws. On a
+rig with a spring its constant is the spring's neutral angle (role ``"no_spring"``)."""
+
+#: The term of :data:`ASYMMETRIC_DAMPING`: ``|theta_dot|``, a viscous torque even in the
+#: velocity (with ``theta_dot`` it is a damping that differs in the velocity's sign).
+ABS_RATE = "|theta_dot|"
+
+
+def _share_start(c: Mapping[str, float], ks: float) -> dict[str, float]:
+    """``r_c`` from stage-1 coefficients: the ``|theta_dot|`` torque over the viscous
+    damping at the middle of a 0-1 A range (stage 1 fits the ``|theta_dot|`` term with one
+    coefficient for all currents), kept within its bounds."""
+    damping = c.get("theta_dot", 0.0) + 0.5 * c.get("i*theta_dot", 0.0)
+    share = c.get(ABS_RATE, 0.0) / damping if damping > 0.0 else 0.0
+    return {"r_c": float(np.clip(share, -1.0, 1.0))}
+
+
+ASYMMETRIC_DAMPING = Effect(
+    "asymmetric_damping",
+    (
+        Param(
+            "r_c",
+            "1",
+            -1.0,
+            1.0,
+            0.3,
+            "asymmetry of the viscous damping c: (1 + r_c) c for theta_dot > 0 (tension), "
+            "(1 - r_c) c for theta_dot < 0 (compression)",
+        ),
+    ),
+    (ABS_RATE,),
+    "viscous damping that differs in tension and compression (a single-ended piston rod: "
+    "the two chambers' areas differ), r_c * c(i) * |theta_dot| with c(i) the model's "
+    "viscous damping and its current law",
+    lambda p, ks: {},
+    _share_start,
+    "a damping that would be negative in one direction: a force even in the velocity "
+    "that is not viscous (a force bias: bias, current_bias)",
+    scaled=(("r_c", ABS_RATE, "theta_dot"),),
+)
+"""A share ``r_c`` of the model's linear viscous damping ``c(i) theta_dot`` that changes
+sign with the velocity: ``c(i) theta_dot (1 + r_c sign(theta_dot))``. The damping is
+``(1 + r_c) c`` in tension and ``(1 - r_c) c`` in compression, both non-negative for the
+admissible ``|r_c| <= 1`` whatever the family's ``c`` (``|theta_dot|`` does no net work
+over a symmetric cycle, so the energy check of the admissibility could not catch a
+negative damping in one direction: the bounds do). A state-space family's damping is not
+in the term form, so the effect adds nothing to one."""
+
+
+#: The term of :data:`ASYMMETRIC_YIELD`: ``|z|``, a hysteretic torque even in ``z`` (with
+#: ``z`` it is a yield force that differs in tension and compression).
+ABS_Z = "|z|"
+
+
+def _yield_share_start(c: Mapping[str, float], ks: float) -> dict[str, float]:
+    """``r_y`` from stage-1 coefficients: the ``|z|`` torque over the hysteretic torque at
+    the middle of a 0-1 A range, kept within its bounds (as :func:`_share_start`)."""
+    alpha = c.get("z", 0.0) + 0.5 * c.get("i*z", 0.0)
+    share = c.get(ABS_Z, 0.0) / alpha if alpha > 0.0 else 0.0
+    return {"r_y": float(np.clip(share, -1.0, 1.0))}
+
+
+ASYMMETRIC_YIELD = Effect(
+    "asymmetric_yield",
+    (
+        Param(
+            "r_y",
+            "1",
+            -1.0,
+            1.0,
+            0.3,
+            "asymmetry of the hysteretic (yield) torque alpha: (1 + r_y) alpha for z > 0 "
+            "(tension), (1 - r_y) alpha for z < 0 (compression)",
+        ),
+    ),
+    (ABS_Z,),
+    "a yield force that differs in tension and compression (a single-ended piston rod, "
+    "a valve that favours one direction), r_y * alpha(i) * |z| with alpha(i) the model's "
+    "hysteretic torque and its current law",
+    lambda p, ks: {},
+    _yield_share_start,
+    "a yield force that would be negative in one direction: a force that does not follow "
+    "the hysteretic state (a force bias: bias, current_bias)",
+    scaled=(("r_y", ABS_Z, "z"),),
+)
+"""A share ``r_y`` of the model's hysteretic torque ``alpha(i) z`` that is even in ``z``:
+``alpha(i) z (1 + r_y sign(z))``. Where ``z`` saturates (the post-yield branches) the
+yield force is ``(1 + r_y) alpha`` in tension and ``(1 - r_y) alpha`` in compression, both
+non-negative for the admissible ``|r_y| <= 1`` whatever the family's ``alpha`` (like
+``|theta_dot|``, ``|z|`` does no net work over a symmetric cycle). A force bias shifts
+both branches alike at every state; this one only where ``z`` is away from 0, so the two
+differ at the velocity's reversals. Families without a hysteretic state (Bingham, whose
+yield is ``sign(theta_dot)``) do not carry it; a state-space family's hysteretic torque is
+not in the term form, so the effect adds nothing to one."""

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
+from hystdisc.models.effects import apply_effects
 from hystdisc.models.params import RIG_PARAMS, check_params
 from hystdisc.models.terms import TermModel
 from hystdisc.registry import get_effect, get_family
@@ -97,9 +98,9 @@ class Model:
         tm = self.family.apply_laws(self.family.to_terms(self.params), self.params)
         tm.torque["theta"] = tm.torque.get("theta", 0.0) + self.params["k_s"]
         tm.J = self.params["J"]
-        for name, ep in self.effects.items():
-            get_effect(name).apply(tm, ep, self.params["k_s"])
-        return tm
+        values = {k: v for ep in self.effects.values() for k, v in ep.items()}
+        effects = [get_effect(name) for name in self.effects]
+        return apply_effects(tm, effects, values, self.params["k_s"])
 
     def __repr__(self) -> str:
         ps = ", ".join(f"{k}={v:g}" for k, v in self.params.items())

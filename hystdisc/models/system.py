@@ -45,6 +45,7 @@ from hystdisc.models.compiled import (
     term_vector,
     vector_rate,
 )
+from hystdisc.models.effects import apply_effects
 from hystdisc.models.params import RIG_PARAMS, Param, check_params
 from hystdisc.models.terms import SIGN_EPS, TermModel
 from hystdisc.registry import effect_names, get_effect, get_experiment
@@ -292,9 +293,7 @@ class FamilySystem(StateSpaceModel):
     def run_parameters(self, values: Mapping[str, float], current: float) -> np.ndarray:
         v = self.check(values)
         ks = v.get("k_s", 0.0)
-        effects = TermModel()
-        for e in self._effects:
-            e.apply(effects, v, ks)
+        effects = apply_effects(TermModel(), self._effects, v, ks)
         head = base_coefficients(effects, current)
         tail = [SIGN_EPS, ks, v.get("J", 1.0)]
         return np.concatenate([head, tail, self.family.block(v, current)])

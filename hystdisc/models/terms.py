@@ -87,11 +87,23 @@ TORQUE_TERMS: dict[str, Callable[..., np.ndarray]] = {
     "theta_dot*|theta_dot|": lambda th, w, z, i: w * np.abs(w),
     "theta^3": lambda th, w, z, i: th**3,
     "1": lambda th, w, z, i: np.ones_like(np.asarray(th, dtype=float)),
+    # a constant torque that grows with the current (the current law of the constant "1")
+    "i": lambda th, w, z, i: i * np.ones_like(np.asarray(th, dtype=float)),
     "i^2*theta_dot": lambda th, w, z, i: i * i * w,
     # at the exponent SHEAR_M0; a term model evaluates it at its own m (TermModel.term)
     SHEAR_TERM: lambda th, w, z, i, m=SHEAR_M0: smooth_power(w, m),
     # a quadratic current law of the Coulomb torque (Family.apply_laws)
     "i^2*sign(theta_dot)": lambda th, w, z, i: i * i * smooth_sign(w),
+    # a viscous torque even in the velocity: with theta_dot, damping that differs in
+    # tension and compression (the asymmetric_damping effect), with its current laws
+    "|theta_dot|": lambda th, w, z, i: np.abs(w),
+    "i*|theta_dot|": lambda th, w, z, i: i * np.abs(w),
+    "i^2*|theta_dot|": lambda th, w, z, i: i * i * np.abs(w),
+    # a hysteretic torque even in z: with z, a yield force that differs in tension and
+    # compression (the asymmetric_yield effect), with its current laws
+    "|z|": lambda th, w, z, i: np.abs(z),
+    "i*|z|": lambda th, w, z, i: i * np.abs(z),
+    "i^2*|z|": lambda th, w, z, i: i * i * np.abs(z),
 }
 TORQUE_TERM_NAMES: tuple[str, ...] = tuple(TORQUE_TERMS)
 
@@ -106,12 +118,14 @@ HYSTERESIS_TERMS: dict[str, Callable[..., np.ndarray]] = {
 HYSTERESIS_TERM_NAMES: tuple[str, ...] = tuple(HYSTERESIS_TERMS)
 
 # Torque terms that depend on z (zero contribution when the model has no hysteresis).
-Z_TORQUE_TERMS = ("z", "i*z", "|theta_dot|*z", "i^2*z")
+Z_TORQUE_TERMS = ("z", "i*z", "|theta_dot|*z", "i^2*z", "|z|", "i*|z|", "i^2*|z|")
+#: The z terms that are a z-free factor times ``|z|`` (the others: times ``z``).
+EVEN_Z_TORQUE_TERMS = ("|z|", "i*|z|", "i^2*|z|")
 
 #: The torque terms a current multiplies, by group: the coefficient of ``i*<group>`` is a
 #: current law's slope. A term model's :attr:`TermModel.saturation` maps a group to the
 #: saturation current ``i0`` of its law.
-LAW_GROUPS = ("z", "theta_dot", "sign(theta_dot)")
+LAW_GROUPS = ("z", "theta_dot", "sign(theta_dot)", "|theta_dot|", "|z|")
 
 
 def effective_current(i, i0: float | None = None):

@@ -96,7 +96,8 @@ WHEEL_PARAMS: tuple[Param, ...] = (
 #: Torque terms of the rig (beam to ground), not of the damper.
 RIG_TERMS = ("theta", "theta^3", "1")
 
-# p layout: the damper's term_vector (no rig spring in it), eps, k_s, m_w, k_w, c_w
+# p layout: the damper's term_vector (N_BASE + 6: no rig spring in it), eps, k_s, m_w,
+# k_w, c_w
 _EPS = TERM_SIZE
 _KS = _EPS + 1
 

@@ -20,6 +20,7 @@ from hystdisc.closing.open_library import (
     regress_output_residual,
     regress_residual,
 )
+from hystdisc.closing.refit import has_spring
 from hystdisc.closing.reselect import Context
 from hystdisc.closing.shift import shift_restart
 from hystdisc.errors import HystdiscWarning
@@ -42,6 +43,16 @@ def decided_by_staged(state: State) -> dict[str, str]:
     return {name: why for name, eff in EFFECTS.items() if eff.has_role("current_law")}
 
 
+def decided_by_spring(fit: OEFit) -> dict[str, str]:
+    """Effects the rig's spring decides (name -> why): on a rig with a spring, an effect
+    whose role is ``no_spring`` is a spring effect in other words (a constant force is
+    the spring's neutral angle, which the spring effects try)."""
+    if not has_spring(fit):
+        return {}
+    why = "the rig has a spring: a constant force is its neutral angle (tried as such)"
+    return {name: why for name, eff in EFFECTS.items() if eff.has_role("no_spring")}
+
+
 def _loop(state: State, fit: OEFit, restart: Callable | None) -> LoopResult:
     """The closing loop on ``fit``."""
     state.say("closing the loop: residual -> catalogued effects")
@@ -55,7 +66,7 @@ def _loop(state: State, fit: OEFit, restart: Callable | None) -> LoopResult:
         heldout=True,
         progress=state.say,
         envelope=state.envelope,
-        decided=decided_by_staged(state),
+        decided={**decided_by_staged(state), **decided_by_spring(fit)},
         noise_samples=state.noise.samples if state.noise is not None else None,
         restart=restart,
         failures=state.failures,

@@ -24,7 +24,8 @@ from hystdisc.results.records import (
     term_model_from_dict,
     term_model_to_dict,
 )
-from hystdisc.results.results import SCHEMA_VERSION, Results, migrate
+from hystdisc.results.results import Results
+from hystdisc.results.schema import SCHEMA_VERSION, migrate
 
 __all__ = [
     "RECORDS",

@@ -5,7 +5,7 @@ Follows lmfit's result objects: :meth:`Results.summary` returns the contract as 
 :meth:`Results.load` round-trip JSON, :meth:`Results.report` is a readable fit report with
 intervals, and ``_repr_html_`` renders tables in a notebook.
 
-The file carries ``schema_version`` (:data:`SCHEMA_VERSION`). Schema 1 is the file of
+The file carries ``schema_version`` (:data:`~hystdisc.results.schema.SCHEMA_VERSION`). Schema 1 is the file of
 hystdisc 0.1 (the same keys, no ``schema_version``); schema 2 added ``schema_version``;
 schema 3 added the held-out judging and admissibility (``conditions``, ``envelope``,
 ``selection_note``, each family's and the final model's ``admissible`` and
@@ -14,7 +14,7 @@ added the state-space families (each family's ``system``, the final ``system_mod
 schema 5 added the current laws the final model carries (a term model's ``saturation``,
 a law's ``<law>_i0`` or ``<law>_i2`` among the parameters and the system's values).
 Older files are read as they are (the new keys absent) and written back as schema 5. A file of a newer schema is refused. To change the schema: add the attribute
-to its record (with a default, documented), bump :data:`SCHEMA_VERSION`, and migrate older
+to its record (with a default, documented), bump :data:`~hystdisc.results.schema.SCHEMA_VERSION`, and migrate older
 tables in :func:`migrate`.
 
 Examples
@@ -55,39 +55,9 @@ from hystdisc.results.records import (
     SkippedEffect,
     TermModelRecord,
 )
-
-#: The ``results.json`` schema this version writes (1: hystdisc 0.1, no ``schema_version``).
-SCHEMA_VERSION = 5
+from hystdisc.results.schema import SCHEMA_VERSION, migrate
 
 _FIX_RERUN = "fix: rerun hystdisc discover --json"
-
-
-def migrate(data: dict) -> dict:
-    """A ``results.json`` table of any known schema as a table of :data:`SCHEMA_VERSION`.
-
-    Schema 1 differs only by the missing ``schema_version``; schema 2 by the keys schema 3
-    added (absent: their attributes keep their defaults, None or empty).
-
-    Raises
-    ------
-    SchemaError
-        For a schema newer than this version's or one that is no integer.
-
-    Examples
-    --------
-    >>> migrate({"family": "dahl"})
-    {'schema_version': 5, 'family': 'dahl'}
-    """
-    version = data.get("schema_version", 1)
-    if isinstance(version, bool) or not isinstance(version, int) or version < 1:
-        raise SchemaError("schema_version", f"not a schema number ({version!r})")
-    if version > SCHEMA_VERSION:
-        raise SchemaError(
-            "schema_version",
-            f"{version}, newer than this hystdisc reads ({SCHEMA_VERSION}); fix: update hystdisc",
-        )
-    rest = {k: v for k, v in data.items() if k != "schema_version"}
-    return {"schema_version": SCHEMA_VERSION, **rest}
 
 
 def _no_model(family: str | None, exc: Exception) -> HystdiscError:
@@ -105,7 +75,7 @@ class Results(Record):
     Attributes
     ----------
     schema_version : int
-        The ``results.json`` schema (:data:`SCHEMA_VERSION`; older files are migrated).
+        The ``results.json`` schema (:data:`~hystdisc.results.schema.SCHEMA_VERSION`; older files are migrated).
     version : str
         The hystdisc version that wrote it.
     input : str
@@ -305,7 +275,7 @@ class Results(Record):
         Returns
         -------
         Results
-            The typed record, migrated to :data:`SCHEMA_VERSION`.
+            The typed record, migrated to :data:`~hystdisc.results.schema.SCHEMA_VERSION`.
 
         Raises
         ------
@@ -386,7 +356,7 @@ class Results(Record):
         Returns
         -------
         Results
-            The typed record, migrated to :data:`SCHEMA_VERSION`.
+            The typed record, migrated to :data:`~hystdisc.results.schema.SCHEMA_VERSION`.
         """
         p = Path(path)
         try:
@@ -566,11 +536,23 @@ class Results(Record):
         return text.parameter_table(self, family)
 
     def effects_table(self) -> list[str]:
-        """The lines of the closing-the-loop table (empty when the loop did not run)."""
+        """Lines of the closing-the-loop table (empty when the loop did not run).
+
+        Returns
+        -------
+        list of str
+            The table's lines.
+        """
         return text.effects_table(self)
 
     def measurement_lines(self) -> list[str]:
-        """How the noise was estimated and the encoder of a quantized angle, a line each."""
+        """How the noise was estimated and the encoder of a quantized angle, one line each.
+
+        Returns
+        -------
+        list of str
+            The lines.
+        """
         return text.measurement_lines(self)
 
     def report(self) -> str:

@@ -42,7 +42,7 @@ def n_sub(c, b, n, J, th, w, z, h, eps, mech, u, ratio, min_sub, max_sub):
             wmin = max(abs(w) - 1.5 * h * acc, 0.0)
             sech2 = 1.0 - math.tanh(wmin / eps) ** 2
         dtdw = abs(c[1] + c[3] * z * (1.0 if w >= 0 else -1.0)) + abs(c[4]) / eps * sech2
-        dtdw += 2.0 * abs(c[5] * w)
+        dtdw += 2.0 * abs(c[5] * w) + abs(c[10])
         if c[8] != 0.0:
             # shear thinning: its slope (w^2 + eps^2)^((m-1)/2) is largest at the smallest
             # |w| the interval may reach (eps^(m-1) at w = 0)
@@ -54,7 +54,7 @@ def n_sub(c, b, n, J, th, w, z, h, eps, mech, u, ratio, min_sub, max_sub):
             # resolve the fast sign transition in time (its rate is acc / eps)
             lam += sech2 * acc / eps
         dtdth = abs(c[0] + 3.0 * c[6] * th * th)
-        dtdz = abs(c[2] + c[3] * abs(w))
+        dtdz = abs(c[2] + c[3] * abs(w)) + abs(c[11])
         lam += dtdw / J + math.sqrt(dtdth / J) + math.sqrt(dtdz * dgdw / J)
     m = int(math.ceil(h * lam / ratio))
     if m < min_sub:

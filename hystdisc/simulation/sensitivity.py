@@ -10,10 +10,10 @@ The result is the exact derivative of the simulated output with respect to the r
 *directions*: the entries of its term vector and its initial state, numbered
 
 ========================  =====================================================
-``0 .. 9``                base coefficients ``c`` (:data:`~hystdisc.models.compiled.N_BASE`)
-``10 .. 14``              hysteresis coefficients ``b``
-``15``, ``16``            the exponent ``n``, the inertia ``J``
-``17``, ``18``, ``19``    the initial ``theta``, ``theta_dot`` and ``z``
+``0 .. 11``               base coefficients ``c`` (:data:`~hystdisc.models.compiled.N_BASE`)
+``12 .. 16``              hysteresis coefficients ``b``
+``17``, ``18``            the exponent ``n``, the inertia ``J``
+``19``, ``20``, ``21``    the initial ``theta``, ``theta_dot`` and ``z``
 ========================  =====================================================
 
 Only the directions listed in ``act`` are propagated, so the cost grows with the number

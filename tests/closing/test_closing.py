@@ -234,6 +234,9 @@ def test_candidates_follow_the_family_and_the_data():
         "offset",
         "series_compliance",
         "shear_thinning",
+        "bias",
+        "current_bias",
+        "asymmetric_damping",
     ]
     reasons = {s.name: s.reason for s in skipped}
     assert "already has i*theta_dot" in reasons["current_viscous"]

@@ -61,6 +61,13 @@ def test_transform_values_by_hand():
             3e-4 * (9e-8 + 1e-6) ** -0.25,
         ],
         "i^2*sign(theta_dot)": [2.25 * sgn[0], 0.0],
+        "i": [1.5, 0.0],
+        "|theta_dot|": [2.0, 3e-4],
+        "i*|theta_dot|": [3.0, 0.0],
+        "i^2*|theta_dot|": [4.5, 0.0],
+        "|z|": [0.25, 0.5],
+        "i*|z|": [0.375, 0.0],
+        "i^2*|z|": [0.5625, 0.0],
     }
     assert set(F) == set(expected)
     for name, values in expected.items():
@@ -72,7 +79,7 @@ def test_z_refresh_equals_full_transform_bit_for_bit():
     x = _state()
     lib = TorqueLibrary(TORQUE_TERM_NAMES).fit(x)
     F, factors = lib.transform_z_free(x * np.array([1.0, 1.0, np.nan, 1.0]))  # z not read
-    assert [j for j, _ in factors] == [
+    assert [j for j, _, _ in factors] == [
         k for k, t in enumerate(TORQUE_TERM_NAMES) if t in Z_TORQUE_TERMS
     ]
     for seed in (1, 2):

@@ -179,6 +179,7 @@ def test_a_batch_on_threads_is_the_batch_in_turn_to_the_bit():
     [
         ("spencer", SPENCER, "driven", ()),
         ("spencer", SPENCER, "driven", ("shear_thinning",)),
+        ("spencer", SPENCER, "driven", ("current_bias",)),
         ("spencer", SPENCER, "driven", ("channel_delay",)),
         ("spencer", {k: v for k, v in SPENCER.items() if k != "k1"}, "release", ()),
         ("tanh", TANH, "driven", ("coulomb",)),

@@ -22,7 +22,7 @@ from hystdisc.fitting import FamilyParametrization, OutputErrorFitter, SystemPar
 from hystdisc.fitting.jacobian import exact_jacobian
 from hystdisc.measurement import FitData
 from hystdisc.models import Model
-from hystdisc.models.compiled import base_coefficients
+from hystdisc.models.compiled import N_BASE, base_coefficients
 from hystdisc.models.wheel import BeamOnCompliantWheel
 from hystdisc.simulation import Integration
 from hystdisc.simulation.batch import (
@@ -31,7 +31,7 @@ from hystdisc.simulation.batch import (
     mech_batch,
     mech_sens_batch,
 )
-from hystdisc.simulation.sensitivity import N_DIR
+from hystdisc.simulation.sensitivity import DIR_J, DIR_N, DIR_TH0, N_DIR
 from hystdisc.simulation.synth import generate
 
 SYNTH = Path(__file__).resolve().parents[2] / "data_synth"
@@ -128,7 +128,7 @@ def _everything():
     tm = Model("bouc-wen-std").to_terms()
     tm.torque.update({"theta": 150.0, "theta^3": 30.0, "1": 0.1, "sign(theta_dot)": 0.2})
     tm.torque.update({"theta_dot*|theta_dot|": 0.05, "sign(theta_dot)*|theta_dot|^m": 0.3})
-    tm.torque["|theta_dot|*z"] = 0.2
+    tm.torque.update({"|theta_dot|*z": 0.2, "|theta_dot|": 0.15, "i": 0.05, "|z|": -0.1})
     tm.hysteresis.update({"|theta_dot|*z": -1.0, "|theta_dot|*|z|^n": 0.5})
     tm.n = 1.6
     return tm
@@ -206,7 +206,8 @@ def test_sensitivities_match_central_differences_of_the_kernel():
             vec = np.column_stack([coef, b, n, J, start.T])
             h = 1e-6 * max(abs(vec[0, d]), 1.0)
             vec[:, d] += sgn * h
-            c, bb, nn, JJ, s0 = vec[:, :10], vec[:, 10:15], vec[:, 15], vec[:, 16], vec[:, 17:]
+            c, bb, nn, JJ = vec[:, :N_BASE], vec[:, N_BASE:DIR_N], vec[:, DIR_N], vec[:, DIR_J]
+            s0 = vec[:, DIR_TH0:]
             s0 = np.ascontiguousarray(s0.T)
             th = mech_batch(c.copy(), bb.copy(), nn.copy(), JJ.copy(), tt, u, off, *s0, **opts)
             cols.append(th[0])
@@ -237,6 +238,12 @@ def test_exact_jacobian_matches_central_differences(family, experiment, fixed_su
         ("channel_delay", "driven"),
         ("channel_delay", "forced"),
         ("shear_thinning", "driven"),
+        ("asymmetric_damping", "release"),
+        ("asymmetric_damping", "driven"),
+        ("asymmetric_yield", "release"),
+        ("asymmetric_yield", "driven"),
+        ("bias", "forced"),
+        ("current_bias", "driven"),
     ],
 )
 def test_exact_jacobian_with_effects(effect, experiment, fixed_substeps):

@@ -106,20 +106,23 @@ def _mech_output(x, u, p):
 
 
 # ---- partial derivatives, for the exact sensitivities (hystdisc.simulation.sensitivity_ode);
-# work: 0..9 dT/dc, 10..15 dR/d(b, n), 16..19 the node rate's partials in (alpha, c0, c1, k0)
+# work: dT/dc (N_BASE), then dR/d(b, n) (6, from _WR), then the node rate's partials in
+# (alpha, c0, c1, k0) (4, from _WN)
 _BLOCK = (_AL, _C0, _C1, _K0)
+_WR = N_BASE
+_WN = N_BASE + 6
 
 
 @numba.njit(cache=True, inline="always")
 def _node_grad(p, v, d, z, work):
     """The node rate and its partials in ``d``, ``z`` and the velocity ``v``; its partials
-    in ``alpha, c0, c1, k0`` go to ``work[16:20]``."""
+    in ``alpha, c0, c1, k0`` go to ``work[_WN : _WN + 4]``."""
     den = p[_C0] + p[_C1]
     node = (p[_AL] * z + p[_C0] * v + p[_K0] * d) / den
-    work[16] = z / den
-    work[17] = (v - node) / den
-    work[18] = -node / den
-    work[19] = d / den
+    work[_WN] = z / den
+    work[_WN + 1] = (v - node) / den
+    work[_WN + 2] = -node / den
+    work[_WN + 3] = d / den
     return node, p[_K0] / den, p[_AL] / den, p[_C0] / den
 
 
@@ -128,17 +131,17 @@ def _stretch_rows(jp, i, rw, work):
     """Rows ``i`` (the stretch rate ``x' - node``) and ``i + 1`` (``z' = R(x' - node, z)``)
     of ``d rate / d p``, from the partials in ``work`` and ``rw = dR/d(x' - node)``."""
     for q in range(4):
-        jp[i, _BLOCK[q]] = -work[16 + q]
-        jp[i + 1, _BLOCK[q]] = -rw * work[16 + q]
+        jp[i, _BLOCK[q]] = -work[_WN + q]
+        jp[i + 1, _BLOCK[q]] = -rw * work[_WN + q]
     for q in range(6):
-        jp[i + 1, _B + q] = work[10 + q]
+        jp[i + 1, _B + q] = work[_WR + q]
 
 
 @numba.njit(cache=True, nogil=True)
 def _driven_rate_jac(x, u, p, need, jx, jp, work):
     d, z = x[0], x[1]
     node, nd, nz, _ = _node_grad(p, u[1], d, z, work)
-    rw, rz = rate_grad(p[_B:_N], p[_N], u[1] - node, z, need[_B : _N + 1], work[10:16])
+    rw, rz = rate_grad(p[_B:_N], p[_N], u[1] - node, z, need[_B : _N + 1], work[_WR : _WR + 6])
     jx[0, 0] = -nd
     jx[0, 1] = -nz
     jx[1, 0] = -rw * nd
@@ -157,7 +160,7 @@ def _driven_output_grad(x, u, p, need, gx, gp, work):
     for i in range(N_BASE):
         gp[i] = work[i]
     for i in range(4):
-        gp[_BLOCK[i]] = c1 * work[16 + i]
+        gp[_BLOCK[i]] = c1 * work[_WN + i]
     gp[_C1] += node
     gp[_K1] = u[0]
 
@@ -169,7 +172,7 @@ def _mech_rate_jac(x, u, p, need, jx, jp, work):
     node, nd, nz, nv = _node_grad(p, w, d, z, work)
     c1, J = p[_C1], p[J_AT]
     tth, tw, tz = torque_grad(p[:N_BASE], th, w, z, p[EPS_AT], need[:N_BASE], work[:N_BASE])
-    rw, rz = rate_grad(p[_B:_N], p[_N], w - node, z, need[_B : _N + 1], work[10:16])
+    rw, rz = rate_grad(p[_B:_N], p[_N], w - node, z, need[_B : _N + 1], work[_WR : _WR + 6])
     force = c1 * node + p[_K1] * th + term_torque(p[:N_BASE], th, w, z, p[EPS_AT])
     jx[0, 1] = 1.0
     # J theta'' = u - k_s theta - F(theta, w, d, z)
@@ -183,7 +186,7 @@ def _mech_rate_jac(x, u, p, need, jx, jp, work):
     for i in range(N_BASE):
         jp[1, i] = -work[i] / J
     for i in range(4):
-        jp[1, _BLOCK[i]] = -c1 * work[16 + i] / J
+        jp[1, _BLOCK[i]] = -c1 * work[_WN + i] / J
     jp[1, _C1] -= node / J
     # the stretch rate w - node and z' = R(w - node, z)
     jx[2, 1] = 1.0 - nv

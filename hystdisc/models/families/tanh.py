@@ -40,7 +40,8 @@ from hystdisc.models.families.base import SystemFamily
 from hystdisc.models.params import param_table
 from hystdisc.models.system import EPS_AT, FAMILY_AT, J_AT, KS_AT
 
-# the family block: c, alpha (current folded in), beta, delta, k
+# the family block, after the effects' N_BASE coefficients, eps, k_s and J: c, alpha
+# (current folded in), beta, delta, k
 _C = FAMILY_AT
 _AL = _C + 1
 _BE = _C + 2
