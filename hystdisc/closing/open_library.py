@@ -42,10 +42,10 @@ import numpy as np
 import pysindy as ps
 from numba import njit
 
+from hystdisc.closing.scores import equation_state
 from hystdisc.discovery.selection import seeded_fit
-from hystdisc.models import EFFECTS, SIGN_EPS, TORQUE_TERMS, TermModel
+from hystdisc.models import EFFECTS, TORQUE_TERMS, TermModel
 from hystdisc.registry import get_experiment
-from hystdisc.simulation import integrate_z
 from hystdisc.stats import bic
 
 #: A term is kept when it is selected in at least this share of the bootstrap refits.
@@ -237,10 +237,7 @@ def candidate_library(eq, tm: TermModel) -> tuple[list[str], np.ndarray, np.ndar
     A : ndarray
         The model's own columns (its torque terms, and the inertia where identifiable).
     """
-    if tm.has_state:
-        z = integrate_z(tm.hysteresis_vector(), tm.n, eq.t, eq.theta_dot, SIGN_EPS)
-    else:
-        z = [np.zeros_like(t) for t in eq.t]
+    z = equation_state(eq, tm)
     own = [k for k, v in tm.torque.items() if v != 0.0]
     coefs = np.array([tm.torque[k] for k in own])
     catalogue = [k for k in TORQUE_TERMS if k not in own and k != "z"]

@@ -195,14 +195,19 @@ def _explained(G: np.ndarray, r: np.ndarray) -> tuple[float, np.ndarray]:
     return float(fit @ fit), c / sc
 
 
+def equation_state(eq, tm: TermModel) -> list[np.ndarray]:
+    """The hysteretic state of ``tm`` along each run of the equation-error data ``eq``
+    (zeros for a model without one)."""
+    if tm.has_state:
+        return integrate_z(tm.hysteresis_vector(), tm.n, eq.t, eq.theta_dot, SIGN_EPS)
+    return [np.zeros_like(t) for t in eq.t]
+
+
 def _equation_evidence(
     eq, tm: TermModel, candidates: Sequence[str]
 ) -> dict[str, tuple[float, float]]:
     """Equation-error evidence of each candidate (see the module docstring)."""
-    if tm.has_state:
-        z = integrate_z(tm.hysteresis_vector(), tm.n, eq.t, eq.theta_dot, SIGN_EPS)
-    else:
-        z = [np.zeros_like(t) for t in eq.t]
+    z = equation_state(eq, tm)
     terms = [k for k, v in tm.torque.items() if v != 0.0]
     coefs = np.array([tm.torque[t] for t in terms])
     inertia = get_experiment(eq.experiment).inertia_identifiable
