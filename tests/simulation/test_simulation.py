@@ -54,9 +54,16 @@ assert TORQUE_TERM_NAMES == (
     "theta_dot*|theta_dot|",
     "theta^3",
     "1",
+    "i",
     "i^2*theta_dot",
     "sign(theta_dot)*|theta_dot|^m",
     "i^2*sign(theta_dot)",
+    "|theta_dot|",
+    "i*|theta_dot|",
+    "i^2*|theta_dot|",
+    "|z|",
+    "i*|z|",
+    "i^2*|z|",
 )
 assert HYSTERESIS_TERM_NAMES == (
     "theta_dot",
@@ -84,9 +91,12 @@ def _ref_torque(a, th, w, z, i, eps):
         + a[9] * w * aw
         + a[10] * th * th * th
         + a[11]
-        + a[12] * i * i * w
-        + a[13] * w / (w * w + eps * eps) ** 0.25  # m = 0.5 (models/test_thinning.py: any m)
-        + a[14] * i * i * s
+        + a[12] * i
+        + a[13] * i * i * w
+        + a[14] * w / (w * w + eps * eps) ** 0.25  # m = 0.5 (models/test_thinning.py: any m)
+        + a[15] * i * i * s
+        + (a[16] + a[17] * i + a[18] * i * i) * aw
+        + (a[19] + a[20] * i + a[21] * i * i) * abs(z)
     )
 
 
@@ -319,6 +329,10 @@ def test_effect_adds_exactly_its_term(effect):
     plain, _ = simulate_driven_runs(base, [t, t], cur, [theta] * 2, [theta_dot] * 2)
     added, _ = simulate_driven_runs(with_effect, [t, t], cur, [theta] * 2, [theta_dot] * 2)
     coefs = EFFECTS[effect].to_torque(with_effect.effects[effect], base.k_s)
+    if EFFECTS[effect].scaled:  # a share of the model's own terms: what the term form adds
+        tb, te = base.to_terms().torque, with_effect.to_terms().torque
+        coefs = {k: te.get(k, 0.0) - tb.get(k, 0.0) for k in set(tb) | set(te)}
+        coefs = {k: c for k, c in coefs.items() if c != 0.0}
     size = 0.0
     for p, q, i in zip(plain, added, cur, strict=True):
         np.testing.assert_array_equal(p.z, q.z)  # the state is untouched
