@@ -36,10 +36,12 @@ ASYM = 1.0
 STEP = 0.05
 
 
-def _driven(seed: int, effects: dict | None = None, family: str = FAMILY) -> Dataset:
+def _driven(
+    seed: int, effects: dict | None = None, family: str = FAMILY, duration: float = 4.0
+) -> Dataset:
     truth = Model(family, {"k_s": 0.0}, effects=effects or {})
     return generate(
-        truth, experiment="driven", currents=(0, 0.5, 1), drives=DRIVES, duration=4,
+        truth, experiment="driven", currents=(0, 0.5, 1), drives=DRIVES, duration=duration,
         noise=NOISE, seed=seed,
     )  # fmt: skip
 
@@ -134,7 +136,7 @@ def test_the_loop_reports_what_the_catalogue_left(tmp_path):
     from hystdisc.report import write_report
     from hystdisc.results import Results
 
-    clean = _driven(3)
+    clean = _driven(3, duration=2.0)
     runs = []
     for r in clean.runs:
         extra = ASYM * r.theta * (r.theta > 0)
