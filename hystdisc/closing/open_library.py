@@ -44,6 +44,7 @@ from numba import njit
 
 from hystdisc.closing.scores import equation_state
 from hystdisc.discovery.selection import seeded_fit
+from hystdisc.fitting import OutputErrorFitter
 from hystdisc.models import EFFECTS, TORQUE_TERMS, TermModel
 from hystdisc.registry import get_experiment
 from hystdisc.stats import bic
@@ -326,8 +327,6 @@ def regress_output_residual(data, fit, seed: int = 0) -> ResidualTerms:
     -------
     ResidualTerms
     """
-    from hystdisc.fitting import OutputErrorFitter
-
     if data.exp.output != "torque":
         raise ValueError("the output-error library needs a force output (a driven test)")
     par = fit.par.like(dict(fit.params), fit.par.effects)  # at the optimum
