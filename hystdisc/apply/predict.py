@@ -8,6 +8,9 @@ half second of the record, since a record may start mid-motion.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import Any
+
 import numpy as np
 
 from hystdisc.data import Dataset, estimate_noise, filter_windows
@@ -20,7 +23,9 @@ from hystdisc.registry import get_experiment
 from hystdisc.simulation import simulate_driven_runs, simulate_mech, simulate_system
 
 
-def beyond_envelope(envelope: dict | None, dataset: Dataset, unit: str = "rad") -> list[str]:
+def beyond_envelope(
+    envelope: Mapping[str, Any] | None, dataset: Dataset, unit: str = "rad"
+) -> list[str]:
     """One line per way a record of ``dataset`` leaves the training envelope.
 
     ``envelope`` is the ``envelope`` entry of ``results.json`` (None: an older file, no

@@ -89,8 +89,8 @@ def fitted_parametrization(
         effects = tuple(results.final.effects)
         params = results.final.parameters or params
     values = {k: float(p.value) for k, p in params.items() if p.value is not None}
-    cd = results.current_dependence or {}
-    fixed = {p: 0.0 for p in cd.get("fixed", [])} if cd.get("identifiable") is False else {}
+    cd = results.current_dependence
+    fixed = {p: 0.0 for p in cd.fixed} if cd is not None and cd.identifiable is False else {}
     fixed = {k: v for k, v in fixed.items() if k not in values or values[k] == 0.0}
     laws = get_family(name).laws_of(values)
     exp = results.experiment

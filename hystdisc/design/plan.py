@@ -41,10 +41,10 @@ BOUND_TOL = 1e-9
 
 def _sampling(results: Results) -> tuple[float, float]:
     """Sampling rate and median duration of the training runs."""
-    env = results.envelope or {}
+    env = results.envelope.runs if results.envelope else []
     rates, durations = [], []
-    for r, e in zip(results.runs, env.get("runs") or [], strict=False):
-        d = float(e.get("duration") or 0.0)
+    for r, e in zip(results.runs, env, strict=False):
+        d = float(e.duration or 0.0)
         if d > 0 and r.samples:
             rates.append((r.samples - 1) / d)
             durations.append(d)
@@ -180,7 +180,7 @@ def information_in_hand(results: Results, parameters: list[str] | None = None) -
         For a file without a training envelope, a forced experiment, or a model that
         diverges on a rebuilt run.
     """
-    if not results.envelope or not results.envelope.get("runs"):
+    if not results.envelope or not results.envelope.runs:
         raise HystdiscError(
             "results: no training envelope (a file written before schema 3); fix: rerun "
             "hystdisc discover"

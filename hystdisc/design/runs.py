@@ -19,7 +19,9 @@ Examples
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -103,7 +105,7 @@ class RunSpec:
         return t, self.amplitude * x / peak, self.amplitude * v / peak
 
 
-def recorded_runs(envelope: dict, driven: bool, fs: float) -> list[RunSpec]:
+def recorded_runs(envelope: Mapping[str, Any], driven: bool, fs: float) -> list[RunSpec]:
     """The runs the fit saw, rebuilt from the training envelope of ``results.json``.
 
     A release run is the release from its peak angle; a driven run the sine of its peak

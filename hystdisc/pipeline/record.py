@@ -22,12 +22,20 @@ from hystdisc.pipeline.state import State
 from hystdisc.registry import get_experiment, get_family
 from hystdisc.results import SCHEMA_VERSION, Results
 from hystdisc.results.build import family_entry, final_entry, system_entry
+from hystdisc.results.record import Record, round_json
 from hystdisc.results.records import (
     DiscoveredResult,
     ResidualSummary,
     RunRecord,
     Stage1Record,
     TermModelRecord,
+)
+from hystdisc.results.sections import (
+    SECTIONS,
+    ConditionsRecord,
+    CurrentDependenceRecord,
+    DelayScanRecord,
+    EncoderRecord,
 )
 
 
@@ -80,6 +88,13 @@ def current_dependence(state: State) -> dict | None:
             "(every family's current-dependent parameters likewise)"
         ),
     }
+
+
+def section(key: str, table: dict) -> Record:
+    """The typed section ``key`` of ``results.json`` from the JSON form its source object
+    gives (``NoiseEstimate.to_dict``...: those objects own their form, and read it back),
+    rounded as the file holds it; the nested tables become their records."""
+    return SECTIONS[key].from_dict(round_json(table), key)
 
 
 def _no_loop_residual(state: State) -> ResidualSummary:
@@ -156,38 +171,38 @@ def build_results(state: State) -> Results:
             for r in dataset.runs
         ],
         "seed": opts.seed,
-        "conditions": {
-            "labels": dict(zip(fd.names, state.conditions, strict=True)),
-            "heldout_by": fd.heldout_by,
-            "folds": len(fd.folds()),
-        },
-        "envelope": state.envelope.to_dict(),
+        "conditions": ConditionsRecord.make(
+            labels=dict(zip(fd.names, state.conditions, strict=True)),
+            heldout_by=fd.heldout_by,
+            folds=len(fd.folds()),
+        ),
+        "envelope": section("envelope", state.envelope.to_dict()),
         "selection_note": state.selection_note,
         "system_model": system_entry(final),
     }
     if currents is not None:  # one current: its dependence is not identifiable
-        data["current_dependence"] = currents
+        data["current_dependence"] = CurrentDependenceRecord.make(**currents)
     if state.noise is not None:  # the measurement, modelled: how the noise was estimated
-        data["noise"] = state.noise.to_dict()
+        data["noise"] = section("noise", state.noise.to_dict())
         enc = state.noise.encoder
-        data["encoder"] = enc.to_dict() if enc is not None else None
+        data["encoder"] = EncoderRecord.make(**enc.to_dict()) if enc is not None else None
     if fd.motion_noise is not None:  # driven: the measured motion's noise, in the intervals
-        data["motion_noise"] = fd.motion_noise.to_dict()
+        data["motion_noise"] = section("motion_noise", fd.motion_noise.to_dict())
     if state.outliers is not None:  # the isolated glitches left out of the fits
-        data["outliers"] = state.outliers.to_dict()
+        data["outliers"] = section("outliers", state.outliers.to_dict())
     # the tasks that failed and were dropped (the run went on without them)
     data["failed"] = dict(state.failed)
     if state.delay_scan is not None:  # the delay between the channels, scanned by stage 1
         notes = [v.note for v in state.measured]
-        data["delay_scan"] = {**state.delay_scan.to_dict(), "notes": notes}
+        data["delay_scan"] = DelayScanRecord.make(**state.delay_scan.to_dict(), notes=notes)
     if state.open_library is not None:  # the open library on a residual the catalogue left
-        data["open_library"] = state.open_library.to_dict()
+        data["open_library"] = section("open_library", state.open_library.to_dict())
     if state.reselection is not None:  # the families compared again with the rig's effects
-        data["reselection"] = state.reselection.to_dict()
+        data["reselection"] = section("reselection", state.reselection.to_dict())
     if state.reduction is not None:  # the selected family reduced to a smaller one + effects
-        data["reduction"] = state.reduction.to_dict()
+        data["reduction"] = section("reduction", state.reduction.to_dict())
     if state.staged is not None:  # the seed's flowchart: per-level fits and current laws
-        data["current_laws"] = state.staged.to_dict(fd.names)
+        data["current_laws"] = section("current_laws", state.staged.to_dict(fd.names))
     if loop is not None:
         data.update(loop_tables(loop))
         data["final"] = final_entry(

@@ -15,9 +15,9 @@ class CurrentSections:
         if not cl:
             return
         self.h2("current-laws")
-        levels = cl["levels"]
+        levels = cl.levels
         self.p(
-            f"{cl['family']} fitted at each current level on its own, 0 A first and each "
+            f"{cl.family} fitted at each current level on its own, 0 A first and each "
             "next level started from the last one's optimum, with its current-dependent "
             "parameters fixed at 0: the passive parameters are the values at that level "
             "(95 % intervals). Each law parameter's law is chosen by leaving one level out: "
@@ -25,22 +25,22 @@ class CurrentSections:
             "in units of that level's standard error, and the simplest law within 10 % of "
             "the best wins."
         )
-        names = list(levels[0]["parameters"])
+        names = list(levels[0].parameters)
         rows = []
         for lv in levels:
             cells = []
             for k in names:
-                p = lv["parameters"][k]
+                p = lv.parameters[k]
                 cells.append(f"{num(p['value'])} {ci_text(p['ci95'])}")
-            rows.append([f"{lv['current']:g}", str(len(lv["runs"])), num(lv["rms"]), *cells])
+            rows.append([f"{lv.current:g}", str(len(lv.runs)), num(lv.rms), *cells])
         self.table(["current (A)", "runs", "RMS", *names], rows, left=0)
-        laws = cl["laws"]
-        cand = list(next(iter(laws.values()))["heldout"]) if laws else []
+        laws = cl.laws
+        cand = list(next(iter(laws.values())).heldout) if laws else []
         rows = []
         for d in laws.values():
-            held = ["-" if d["heldout"][c] is None else num(d["heldout"][c]["z"]) for c in cand]
-            coefs = ", ".join(f"{k} = {num(v)}" for k, v in d["coefficients"].items())
-            rows.append([d["parameter"], *held, d["law"], coefs])
+            held = ["-" if d.heldout[c] is None else num(d.heldout[c]["z"]) for c in cand]
+            coefs = ", ".join(f"{k} = {num(v)}" for k, v in d.coefficients.items())
+            rows.append([d.parameter, *held, d.law, coefs])
         self.table(["parameter", *[f"held-out {c}" for c in cand], "chosen", "coefficients"], rows)
         if laws:
             from hystdisc.plotting import plot_current_laws
@@ -52,14 +52,14 @@ class CurrentSections:
                 "Each law parameter against the current: per-level values with 95 % "
                 "intervals, the chosen law fitted to them and (dashed) the linear law.",
             )
-        j, lin = cl["joint"], cl["linear"]
+        j, lin = cl.joint, cl.linear
 
         self.table(
             ["joint fit", "RMS", "held-out RMS", "BIC"],
             [
-                ["chosen laws", num(j["rms"]), num(j["heldout_rms"]), num(j["bic"])],
-                ["linear laws", num(lin["rms"]), num(lin["heldout_rms"]), num(lin["bic"])],
+                ["chosen laws", num(j.rms), num(j.heldout_rms), num(j.bic)],
+                ["linear laws", num(lin.rms), num(lin.heldout_rms), num(lin.bic)],
             ],
         )
-        for note in cl.get("notes", []):
+        for note in cl.notes:
             self.p(note)

@@ -144,7 +144,7 @@ class OverviewSections:
             ["run", "current [A]", "samples", "fitted", "duration [s]", "fs [Hz]", f"{meas} range"],
             rows,
         )
-        out = (self.res.outliers or {}).get("items", [])
+        out = self.res.outliers.items if self.res.outliers else []
         if out:
             self.p(
                 f"{len(out)} isolated glitch{'' if len(out) == 1 else 'es'} (samples that disagree "
@@ -155,12 +155,12 @@ class OverviewSections:
                 ["run", "signal", "t [s]", "sample", "size", "residual of the model"],
                 [
                     [
-                        g["run"],
-                        g["signal"],
-                        num(g["t"], ".6g"),
-                        g["sample"],
-                        num(g["size"], ".3g"),
-                        "–" if g.get("residual") is None else num(g["residual"], ".3g"),
+                        g.run,
+                        g.signal,
+                        num(g.t, ".6g"),
+                        g.sample,
+                        num(g.size, ".3g"),
+                        "–" if g.residual is None else num(g.residual, ".3g"),
                     ]
                     for g in out
                 ],

@@ -17,6 +17,7 @@ from hystdisc.results.records import (
     ParameterResult,
     TermModelRecord,
 )
+from hystdisc.results.sections import SystemModelRecord
 
 
 def _parameters(fit: Any, fixed: tuple[str, ...] = ()) -> dict[str, ParameterResult]:
@@ -99,27 +100,27 @@ def _common(fit: Any, fam: Any, admissibility: Any | None, fixed: tuple[str, ...
     }
 
 
-def system_entry(fit: Any) -> dict | None:
+def system_entry(fit: Any) -> SystemModelRecord | None:
     """The ``system`` table of a state-space fit (None for a term model). A term model
     around a structural effect (``series_compliance``) is its term part (``model``) plus
     ``{"structural": name, "experiment", "values": the effect's parameters}``."""
     structure = getattr(fit.par, "structure", None)
     if structure is not None:
         _, values = fit.model
-        return {
-            "structural": structure.name,
-            "experiment": fit.par.experiment,
-            "values": {k: float(v) for k, v in values.items()},
-        }
+        return SystemModelRecord.make(
+            structural=structure.name,
+            experiment=fit.par.experiment,
+            values={k: float(v) for k, v in values.items()},
+        )
     if not fit.is_system:
         return None
     system, values = fit.model
-    return {
-        "family": system.family.name,
-        "experiment": system.experiment.name,
-        "effects": list(system.effects),
-        "values": {k: float(v) for k, v in values.items()},
-    }
+    return SystemModelRecord.make(
+        family=system.family.name,
+        experiment=system.experiment.name,
+        effects=list(system.effects),
+        values={k: float(v) for k, v in values.items()},
+    )
 
 
 def _admissible(adm: Any | None) -> dict:

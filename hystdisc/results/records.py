@@ -20,6 +20,7 @@ from typing import Any
 
 from hystdisc.models import SHEAR_M0, SHEAR_TERM, TermModel
 from hystdisc.results.record import Record, list_of, record_of, table_of
+from hystdisc.results.sections import SystemModelRecord
 
 
 def term_model_to_dict(tm: TermModel) -> dict:
@@ -158,9 +159,8 @@ class FamilyResult(Record):
         Remarks of the fit (bounds reached, parameters fixed).
     term_model : TermModelRecord
         The fit in term form (None for a system family).
-    system : dict or None
-        A system family's fitted model (schema 4): ``family``, ``experiment``,
-        ``effects`` and the parameter ``values`` the simulator takes.
+    system : SystemModelRecord or None
+        A system family's fitted model (schema 4).
     converged : bool
         The optimizer's success flag.
     extra : dict
@@ -170,6 +170,7 @@ class FamilyResult(Record):
     _nested = {
         "parameters": table_of(ParameterResult),
         "term_model": record_of(TermModelRecord),
+        "system": record_of(SystemModelRecord),
     }
 
     parameters: dict[str, ParameterResult] = field(default_factory=dict)
@@ -184,7 +185,7 @@ class FamilyResult(Record):
     extra_terms: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
     term_model: TermModelRecord | None = None
-    system: dict[str, Any] | None = None
+    system: SystemModelRecord | None = None
     converged: bool = True
     extra: dict[str, Any] = field(default_factory=dict, repr=False)
 

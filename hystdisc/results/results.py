@@ -56,6 +56,22 @@ from hystdisc.results.records import (
     TermModelRecord,
 )
 from hystdisc.results.schema import SCHEMA_VERSION, migrate
+from hystdisc.results.sections import (
+    SECTIONS,
+    ConditionsRecord,
+    CurrentDependenceRecord,
+    CurrentLawsRecord,
+    DelayScanRecord,
+    EncoderRecord,
+    EnvelopeRecord,
+    MotionNoiseRecord,
+    NoiseRecord,
+    OpenLibraryRecord,
+    OutliersRecord,
+    ReductionRecord,
+    ReselectionRecord,
+    SystemModelRecord,
+)
 
 _FIX_RERUN = "fix: rerun hystdisc discover --json"
 
@@ -121,83 +137,35 @@ class Results(Record):
         The remaining structure in plain words.
     final : FinalResult or None
         The selected family with its accepted effects (None: no loop).
-    conditions : dict or None
-        The test conditions: ``labels`` (run name -> condition), ``heldout_by``
-        (``"condition"`` or ``"run"``: what each held-out fold leaves out) and ``folds``
-        (schema 3).
-    envelope : dict or None
-        What the training runs covered: ``theta_max``, ``theta_dot_max``,
-        ``current_min``, ``current_max`` and each run's (schema 3;
-        :class:`~hystdisc.data.envelope.Envelope`). ``predict`` warns beyond it.
+    conditions : ConditionsRecord or None
+        The test conditions and held-out folds (schema 3).
+    envelope : EnvelopeRecord or None
+        What the training runs covered (schema 3). ``predict`` warns beyond it.
     selection_note : str or None
         Why the selected family is not the one BIC alone would have chosen (schema 3).
-    system_model : dict or None
-        The final model of a system family (schema 4): ``family``, ``experiment``,
-        ``effects`` and the parameter ``values``; or, for a final model with a structural
-        effect, ``structural`` (its name), ``experiment`` and the effect's ``values``
-        around the term part ``model``.
-    current_dependence : dict or None
-        Present when all runs share one current (a rig without a coil, the hysteretic
-        benchmark): ``identifiable`` (false), ``currents`` (the one level), ``fixed`` (the
-        selected family's current-dependent parameters, held at 0 and marked not
-        identifiable in the family tables) and a ``note``; None (absent) when the data hold
-        two current levels or more.
-    noise : dict or None
-        How ``noise_std`` was estimated: ``std``, ``method`` (``period``: period-to-period
-        differences of a periodic excitation; ``differences``: high-order differences,
-        white noise; ``quantization``: the floor ``q / sqrt(12)`` of a quantized output),
-        ``signal``, ``differences``, ``period``, ``quantization_floor`` and each run's
-        estimates in ``runs`` (:meth:`hystdisc.data.NoiseEstimate.to_dict`).
-    motion_noise : dict or None
-        Driven experiments: the noise on the measured imposed motion, which enters the
-        fit and its intervals (errors in variables, :mod:`hystdisc.fitting.motion_error`):
-        ``std`` (pooled over the runs: the root of their sample-weighted mean variance),
-        ``method`` (most runs': ``cycle-to-cycle``, ``differences`` or ``quantization``),
-        ``runs`` (run name -> std), ``methods`` (run name -> method) and ``estimates``
-        (run name -> how the fit's motion was estimated: ``estimate`` ``harmonic``, a
-        least-squares Fourier series, ``smoother`` or ``filter``, the motion before a
-        declared filter; a tried harmonic fit's ``harmonics``, ``frequency`` and
-        ``residual``; ``note``: why the series was not used)
-        (:meth:`hystdisc.data.motion.MotionNoise.to_dict`); None (absent) otherwise.
-    encoder : dict or None
-        The lattice of the recorded angle, when it is quantized: ``step``,
-        ``counts_per_revolution`` (``2 pi / step`` when whole), ``floor``
-        (``step / sqrt(12)``), ``offset``, ``levels``, ``on_lattice``
-        (:class:`hystdisc.data.Quantization`); None when it is not.
-    current_laws : dict or None
-        The staged fit (``discover --staged``): per-level fits, each law parameter's
-        per-level values with intervals, the candidate laws' held-out errors, the chosen
-        law and its coefficients, the joint fits (see
-        :meth:`hystdisc.fitting.StagedFit.to_dict`); None without it.
-    outliers : dict or None
-        The isolated glitches of the measured signals, left out of every fit
-        (:meth:`hystdisc.fitting.Outliers.to_dict`): ``count``, ``runs``, ``items`` (each
-        glitch's ``run``, ``signal``, ``sample``, ``t``, ``size``, ``residual``,
-        ``fitted``), ``explained`` (candidates the model reproduces, kept in the fit),
-        ``threshold_sigma``, ``left_out``; None in files written before it.
-    reselection : dict or None
-        Present when the closing loop accepted effects with a term form on a selected
-        family: every family refitted with those it can carry (``families``: ``rms``,
-        ``heldout_rms``, ``bic``, ``admissible``), the family selected ``before``, the
-        ``pick`` among those fits, whether the selection ``switched`` to it (the same rule
-        selects its final model over ``before``'s; their held-out RMS in
-        ``final_heldout``), and a ``note`` (:class:`hystdisc.closing.reselect.Reselection`).
-    reduction : dict or None
-        Present when the selected family's intervals held the values at which it is a
-        smaller family plus effects: the ``family``, the smaller one (``to``), the values
-        (``at``), the ``effects`` it was fitted with, that ``fit``'s ``rms``,
-        ``heldout_rms`` and ``bic``, whether the selection ``switched`` to it, the final
-        models' held-out RMS and BIC (``final_heldout``, ``final_bic``) and a ``note``
-        (:class:`hystdisc.closing.reduction.Reduction`).
-    delay_scan : dict or None
-        Driven data: the delay between the recorded channels scanned by stage 1
-        (:class:`hystdisc.discovery.delay.DelayScan`: ``tau``, ``dbic``, ``found``,
-        ``reach``) and, when one was found and every family carried it, the verdict on
-        the selected family (``notes``); None when not scanned.
-    open_library : dict or None
-        The open library's stable ``terms`` in a residual the catalogue left, their
-        ``effects``, the share ``explained`` and the discovered ``equation``
-        (:class:`hystdisc.closing.open_library.ResidualTerms`); None when not run.
+    system_model : SystemModelRecord or None
+        The final model of a system family, or a term model's structural effect (schema 4).
+    current_dependence : CurrentDependenceRecord or None
+        Present when all runs share one current; absent with two levels or more.
+    noise : NoiseRecord or None
+        How ``noise_std`` was estimated.
+    motion_noise : MotionNoiseRecord or None
+        Driven experiments: the noise on the measured motion, in the fit and intervals.
+    encoder : EncoderRecord or None
+        The lattice of the recorded angle, when it is quantized.
+    current_laws : CurrentLawsRecord or None
+        The staged fit (``discover --staged``); None without it.
+    outliers : OutliersRecord or None
+        The isolated glitches left out of every fit; None in files written before it.
+    reselection : ReselectionRecord or None
+        Every family refitted with the effects the loop accepted, when it did.
+    reduction : ReductionRecord or None
+        The selected family reduced to a smaller family plus effects, when its intervals
+        held those values.
+    delay_scan : DelayScanRecord or None
+        Driven data: the delay between the channels scanned by stage 1.
+    open_library : OpenLibraryRecord or None
+        The open library's terms in a residual the catalogue left; None when not run.
     failed : dict of str to str
         The tasks of the discovery that failed and were dropped, each with its one-line
         reason (a family, ``<family> start '<label>'``, ``<family> held-out folds``,
@@ -218,6 +186,7 @@ class Results(Record):
         "effects_skipped": list_of(SkippedEffect),
         "diagnosis": list_of(DiagnosisRound),
         "final": record_of(FinalResult),
+        **{key: record_of(cls) for key, cls in SECTIONS.items()},
     }
 
     schema_version: int = SCHEMA_VERSION
@@ -243,20 +212,20 @@ class Results(Record):
     diagnosis: list[DiagnosisRound] | None = None
     unexplained_text: str | None = None
     final: FinalResult | None = None
-    conditions: dict[str, Any] | None = None
-    envelope: dict[str, Any] | None = None
+    conditions: ConditionsRecord | None = None
+    envelope: EnvelopeRecord | None = None
     selection_note: str | None = None
-    system_model: dict[str, Any] | None = None
-    current_dependence: dict[str, Any] | None = None
-    current_laws: dict[str, Any] | None = None
-    noise: dict[str, Any] | None = None
-    motion_noise: dict[str, Any] | None = None
-    encoder: dict[str, Any] | None = None
-    outliers: dict[str, Any] | None = None
-    reselection: dict[str, Any] | None = None
-    reduction: dict[str, Any] | None = None
-    delay_scan: dict[str, Any] | None = None
-    open_library: dict[str, Any] | None = None
+    system_model: SystemModelRecord | None = None
+    current_dependence: CurrentDependenceRecord | None = None
+    current_laws: CurrentLawsRecord | None = None
+    noise: NoiseRecord | None = None
+    motion_noise: MotionNoiseRecord | None = None
+    encoder: EncoderRecord | None = None
+    outliers: OutliersRecord | None = None
+    reselection: ReselectionRecord | None = None
+    reduction: ReductionRecord | None = None
+    delay_scan: DelayScanRecord | None = None
+    open_library: OpenLibraryRecord | None = None
     failed: dict[str, str] = field(default_factory=dict)
     extra: dict[str, Any] = field(default_factory=dict, repr=False)
 

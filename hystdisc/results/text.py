@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:  # the Results class imports this module
     from hystdisc.results.results import Results
+    from hystdisc.results.sections import MotionNoiseRecord, OpenLibraryRecord
 
 
 def _num(x: Any, fmt: str) -> str:
@@ -32,18 +33,17 @@ def family_table(res: Results) -> str:
         )
     cond = res.conditions
     if cond:
-        by = cond.get("heldout_by")
         what = (
-            f"each of the {cond.get('folds')} test conditions"
-            if by == "condition"
+            f"each of the {cond.folds} test conditions"
+            if cond.heldout_by == "condition"
             else "each run (the runs share one test condition)"
         )
         rows.append(f"held-out RMS: {what} predicted by the fit without it")
     for name, f in res.families.items():  # a '-' where the folds ran says why
         rows += [f"{name}: {n}" for n in f.notes if "held-out RMS not reported" in n]
     # the table's fits; with a re-selection, the families were fitted again with effects
-    rs = res.reselection or {}
-    without = f" without {', '.join(rs.get('effects', []))}" if rs else ""
+    rs = res.reselection
+    without = f" without {', '.join(rs.effects)}" if rs else ""
     for name, f in res.families.items():
         for v in f.violations:
             rows.append(f"{name} is not physical{without}: {v}")
@@ -51,15 +51,15 @@ def family_table(res: Results) -> str:
         rows.append(f"selection: {res.selection_note}")
     if rs:  # the families compared again with the loop's effects
         cells = [
-            f"{n} {_num(e.get('heldout_rms'), '.4g')}{'' if e.get('admissible') else ' (not physical)'}"
-            for n, e in rs.get("families", {}).items()
+            f"{n} {_num(e.heldout_rms, '.4g')}{'' if e.admissible else ' (not physical)'}"
+            for n, e in rs.families.items()
         ]
-        rows.append(f"held-out RMS with {', '.join(rs.get('effects', []))}: " + ", ".join(cells))
-        if not rs.get("switched"):
-            rows.append(f"selection again: {rs.get('note')}")
-    rd = res.reduction or {}
-    if rd and not rd.get("switched"):  # a switch is the selection note itself
-        rows.append(f"reduction: {rd.get('note')}")
+        rows.append(f"held-out RMS with {', '.join(rs.effects)}: " + ", ".join(cells))
+        if not rs.switched:
+            rows.append(f"selection again: {rs.note}")
+    rd = res.reduction
+    if rd and not rd.switched:  # a switch is the selection note itself
+        rows.append(f"reduction: {rd.note}")
     return "\n".join(rows)
 
 
@@ -194,15 +194,16 @@ def _residual_lines(res: Results) -> list[str]:
     return out
 
 
-def open_library_lines(lib: dict | None) -> list[str]:
+def open_library_lines(lib: OpenLibraryRecord | None) -> list[str]:
     """The open library's finding, a line each: its stable terms, their inclusion and
     the catalogued effect each belongs to, and the discovered effect's equation.
 
     Examples
     --------
-    >>> lib = {"candidates": 31, "explained": 0.88, "equation": "T_extra = 0.05*[theta_dot>0]",
-    ...        "terms": [{"name": "[theta_dot>0]", "coefficient": 0.05, "inclusion": 1.0,
-    ...                   "effect": ""}]}
+    >>> from hystdisc.results.sections import OpenLibraryRecord
+    >>> lib = OpenLibraryRecord.from_dict({"candidates": 31, "explained": 0.88,
+    ...     "equation": "T_extra = 0.05*[theta_dot>0]", "terms": [{"name": "[theta_dot>0]",
+    ...     "coefficient": 0.05, "inclusion": 1.0, "effect": ""}]})
     >>> for line in open_library_lines(lib):
     ...     print(line)
     Open library (31 candidates, stability selection): 1 stable term explains 88 % of it
@@ -211,20 +212,20 @@ def open_library_lines(lib: dict | None) -> list[str]:
     """
     if not lib:
         return []
-    terms = lib.get("terms") or []
-    head = f"Open library ({lib.get('candidates', 0)} candidates, stability selection): "
+    terms = lib.terms
+    head = f"Open library ({lib.candidates} candidates, stability selection): "
     if not terms:
         return [head + "no stable term"]
     n = len(terms)
     out = [
         head + f"{n} stable term{'s' if n > 1 else ''} explain{'' if n > 1 else 's'} "
-        f"{100 * float(lib.get('explained', 0.0)):.0f} % of it"
+        f"{100 * float(lib.explained or 0.0):.0f} % of it"
     ]
     for t in terms:
-        who = f"-> {t['effect']}" if t.get("effect") else "discovered"
-        out.append(f"  {t['name']}: {t['coefficient']:.4g} (inclusion {t['inclusion']:.2f}, {who})")
-    if lib.get("equation"):
-        out.append(f"  {lib['equation']} (evidence, not a verdict: refit and held out before use)")
+        who = f"-> {t.effect}" if t.effect else "discovered"
+        out.append(f"  {t.name}: {t.coefficient:.4g} (inclusion {t.inclusion:.2f}, {who})")
+    if lib.equation:
+        out.append(f"  {lib.equation} (evidence, not a verdict: refit and held out before use)")
     return out
 
 
@@ -239,40 +240,40 @@ _HOW = {
 def measurement_lines(res: Results) -> list[str]:
     """How the noise was estimated, and the encoder of a quantized angle (if any)."""
     out = []
-    nz, enc = res.noise or {}, res.encoder
-    if nz.get("std") is not None:
-        how = _HOW.get(nz.get("method"), str(nz.get("method")))
-        diff = nz.get("differences")
+    nz, enc = res.noise, res.encoder
+    if nz is not None and nz.std is not None:
+        how = _HOW.get(nz.method, str(nz.method))
+        diff = nz.differences
         other = (
             f"; high-order differences give {diff:.3g}"
-            if nz.get("method") != "differences" and diff is not None
+            if nz.method != "differences" and diff is not None
             else ""
         )
-        out.append(f"Measurement noise: {nz['std']:.3g} from {how}{other}")
-    motion = res.motion_noise or {}
-    if motion.get("std") is not None:  # driven: the imposed motion is measured too
+        out.append(f"Measurement noise: {nz.std:.3g} from {how}{other}")
+    motion = res.motion_noise
+    if motion is not None and motion.std is not None:  # driven: the motion is measured too
         out.append(_motion_line(motion))
     if enc:
-        counts = enc.get("counts_per_revolution")
+        counts = enc.counts_per_revolution
         what = f"{counts} counts per revolution, " if counts else ""
-        used = " (the noise floor)" if nz.get("method") == "quantization" else ""
+        used = " (the noise floor)" if nz is not None and nz.method == "quantization" else ""
         out.append(
-            f"Encoder: {what}step {enc['step']:.6g}, quantization floor q/sqrt(12) = "
-            f"{enc['floor']:.3g}{used}"
+            f"Encoder: {what}step {enc.step:.6g}, quantization floor q/sqrt(12) = "
+            f"{enc.floor:.3g}{used}"
         )
     return out
 
 
-def _motion_line(motion: dict) -> str:
+def _motion_line(motion: MotionNoiseRecord) -> str:
     """``Motion noise: ...``: its level, how it was estimated, how the motion was estimated
     (and the first reason a run's harmonic series was not used)."""
     kinds: dict[str, int] = {}
     notes = []
-    for name, est in (motion.get("estimates") or {}).items():
+    for name, est in motion.estimates.items():
         kinds[est.get("estimate")] = kinds.get(est.get("estimate"), 0) + 1
         if est.get("estimate") in ("local", "smoother") and est.get("note"):
             notes.append(f"run {name}: {est['note']}")
-    line = f"Motion noise: {motion['std']:.3g} from {motion.get('method')}"
+    line = f"Motion noise: {motion.std:.3g} from {motion.method}"
     if kinds:
         how = ", ".join(f"{n} {k}" for k, n in kinds.items())
         carried = (
@@ -309,8 +310,8 @@ def report(res: Results) -> str:
             f"(BIC within 6); the data cannot tell them apart."
         )
     cd = res.current_dependence
-    if cd and not cd.get("identifiable", True):
-        out.append(f"Current dependence: not identifiable: {cd.get('note', '')}")
+    if cd and not cd.identifiable:
+        out.append(f"Current dependence: not identifiable: {cd.note}")
     sel = "declared" if res.declared else "selected"
     out += ["", f"{sel.capitalize()} family: {res.family}", parameter_table(res)]
     f = res.families[res.family]
@@ -350,8 +351,10 @@ def outlier_lines(res: Results) -> list[str]:
     Examples
     --------
     >>> from hystdisc.results import Results
-    >>> r = Results(outliers={"count": 1, "runs": ["2"], "left_out": True, "items": [
-    ...     {"run": "2", "signal": "theta", "sample": 7, "t": 0.007, "size": 0.05}]})
+    >>> from hystdisc.results.sections import OutliersRecord
+    >>> r = Results(outliers=OutliersRecord.from_dict({"count": 1, "runs": ["2"],
+    ...     "left_out": True, "items": [{"run": "2", "signal": "theta", "sample": 7,
+    ...     "t": 0.007, "size": 0.05}]}))
     >>> for line in outlier_lines(r)[1:]:
     ...     print(line)
     Outliers: 1 isolated glitch left out of the fit (run 2)
@@ -360,18 +363,15 @@ def outlier_lines(res: Results) -> list[str]:
     o = res.outliers
     if not o:
         return []
-    n = int(o.get("count", 0))
+    n = int(o.count)
     if n == 0:
-        return ["", f"Outliers: none (screen at {o.get('threshold_sigma', 7):g} noise std)"]
-    what = "left out of the fit" if o.get("left_out", True) else "reported only"
-    runs = ", ".join(str(r) for r in o.get("runs", []))
+        return ["", f"Outliers: none (screen at {o.threshold_sigma or 7:g} noise std)"]
+    what = "left out of the fit" if o.left_out else "reported only"
+    runs = ", ".join(str(r) for r in o.runs)
     out = ["", f"Outliers: {n} isolated glitch{'' if n == 1 else 'es'} {what} (run {runs})"]
-    items = o.get("items", [])
+    items = o.items
     for g in items[:20]:
-        out.append(
-            f"  run {g['run']}, {g['signal']}, t = {g['t']:.6g} s (sample {g['sample']}): "
-            f"{g['size']:+.4g}"
-        )
+        out.append(f"  run {g.run}, {g.signal}, t = {g.t:.6g} s (sample {g.sample}): {g.size:+.4g}")
     if len(items) > 20:
         out.append(f"  ... and {len(items) - 20} more (results.json, key outliers)")
     return out
@@ -406,8 +406,8 @@ def html_summary(res: Results) -> str:
     if lib:
         eff_html += "<br>" + "<br>".join(e(x) for x in lib)
     cd = res.current_dependence
-    if cd and not cd.get("identifiable", True):
-        eff_html += f"<br><b>Current dependence not identifiable:</b> {e(str(cd.get('note')))}"
+    if cd and not cd.identifiable:
+        eff_html += f"<br><b>Current dependence not identifiable:</b> {e(cd.note)}"
     if res.failed:
         items = "".join(f"<li>{e(k)}: {e(v)}</li>" for k, v in res.failed.items())
         eff_html += f"<br><b>Failed and dropped</b><ul>{items}</ul>"

@@ -154,18 +154,21 @@ def test_the_record_says_what_was_compared(base):
 
 def test_the_console_table_shows_the_families_with_the_rigs_effect():
     from hystdisc.results import Results
+    from hystdisc.results.sections import ReselectionRecord
 
     res = Results(
         family="dahl",
-        reselection={
-            "effects": ["offset"],
-            "families": {
-                "dahl": {"heldout_rms": 0.002, "admissible": True},
-                "bouc-wen": {"heldout_rms": 0.001, "admissible": False},
-            },
-            "switched": False,
-            "note": "with offset in every family, dahl is still selected",
-        },
+        reselection=ReselectionRecord.from_dict(
+            {
+                "effects": ["offset"],
+                "families": {
+                    "dahl": {"heldout_rms": 0.002, "admissible": True},
+                    "bouc-wen": {"heldout_rms": 0.001, "admissible": False},
+                },
+                "switched": False,
+                "note": "with offset in every family, dahl is still selected",
+            }
+        ),
     )
     lines = res.family_table().splitlines()
     assert "held-out RMS with offset: dahl 0.002, bouc-wen 0.001 (not physical)" in lines

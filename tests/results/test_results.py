@@ -23,6 +23,14 @@ from hystdisc.results import (
     Results,
     TermModelRecord,
 )
+from hystdisc.results.sections import (
+    SECTION_RECORDS,
+    SECTIONS,
+    ConditionsRecord,
+    EnvelopeRecord,
+    NoiseRecord,
+    RunEnvelopeRecord,
+)
 from hystdisc.simulation.synth import generate
 
 FIXTURES = Path(__file__).parent / "fixtures"
@@ -196,6 +204,9 @@ def test_newer_schema_is_refused(tmp_path):
         ("residual", [1, 2], "residual"),
         ("effects", [3], "effects[0]"),
         ("discovered", {"stage1": 5}, "discovered.stage1"),
+        ("noise", {"std": 0.1, "runs": "x"}, "noise.runs"),
+        ("envelope", [0.3], "envelope"),
+        ("reselection", {"families": {"dahl": 3}}, "reselection.families.dahl"),
     ],
 )
 def test_malformed_structure_is_one_line(tmp_path, key, value, where):
@@ -219,8 +230,32 @@ def test_an_unknown_experiment_is_one_line(tmp_path, value):
     assert "experiment" in msg and "release" in msg and "fix:" in msg and "\n" not in msg
 
 
+def test_every_section_is_typed_and_round_trips():
+    """Each dict-shaped key of results.json reads as its record (the nested tables as
+    theirs), writes back the same table in the same key order, and keeps unknown keys."""
+    tables = json.loads((FIXTURES / "sections.json").read_text(encoding="utf-8"))
+    assert set(tables) == set(SECTIONS)
+    res = Results.from_dict({"version": "0", "experiment": "driven", **tables})
+    for key, cls in SECTIONS.items():
+        rec = getattr(res, key)
+        assert type(rec) is cls, key
+        assert rec.to_dict() == tables[key] and list(rec.to_dict()) == list(tables[key]), key
+        more = cls.from_dict({**tables[key], "future_key": 1}, key)
+        assert more.extra == {"future_key": 1} and list(more.to_dict())[-1] == "future_key"
+    assert Results.from_json(res.to_json()) == res
+    # nested tables are records too, read by attribute
+    assert res.envelope.runs[1].current == 0.5 and res.noise.runs[0].method == "differences"
+    assert res.outliers.items[0].signal == tables["outliers"]["items"][0]["signal"]
+    assert res.reselection.families["spencer"].heldout_rms is not None
+    assert res.current_laws.laws["c"].coefficients == {"c_a": 0.5, "c_b": 0.6}
+    assert res.open_library.terms[1].effect == "quadratic_damping"
+    assert res.reduction.fit.bic == tables["reduction"]["fit"]["bic"]
+    # and by key, as the plain tables of schema 1 were
+    assert res.noise["method"] == "period" and dict(res.conditions) == tables["conditions"]
+
+
 def test_every_attribute_is_documented():
-    for cls in (Results, *RECORDS):
+    for cls in (Results, *RECORDS, *SECTION_RECORDS):
         doc = inspect.getdoc(cls)
         assert "Attributes\n----------" in doc, cls.__name__
         documented = set()
@@ -272,6 +307,11 @@ def test_real_fit_has_todays_keys_plus_schema_version(small_fit):
     assert summary["noise"]["method"] == "differences" and summary["encoder"] is None
     # typed attributes read the same values
     res = disc.results_
+    assert isinstance(res.conditions, ConditionsRecord)
+    assert res.conditions.folds == summary["conditions"]["folds"]
+    assert isinstance(res.noise, NoiseRecord) and res.noise.std == summary["noise"]["std"]
+    assert isinstance(res.envelope, EnvelopeRecord)
+    assert all(isinstance(r, RunEnvelopeRecord) for r in res.envelope.runs)
     assert res.families["dahl"].rms == summary["families"]["dahl"]["rms"]
     assert res.family == disc.family_ and res.experiment == "release"
     assert res.term_model().torque == summary["model"]["torque"]
