@@ -95,6 +95,9 @@ class EffectVerdict:
         The values the data want outside the admissible bounds (``"c_q = -0.1"``).
     heldout_skipped : bool
         Its held-out error was not computed: another test had already failed.
+    heldout_refit : bool
+        Its held-out error is that of folds refitted completely from the joint optimum
+        (every other test had passed and the quick estimate said it does not predict).
     """
 
     name: str
@@ -126,6 +129,7 @@ class EffectVerdict:
     violation: str | None = None
     wants: str | None = None
     heldout_skipped: bool = False
+    heldout_refit: bool = False
 
     @property
     def acceptable(self) -> bool:
@@ -162,6 +166,7 @@ class EffectVerdict:
         elif hb is not None and not (ha is not None and ha < hb):
             after = "diverged" if ha is None else f"{ha:.4g}"
             why = ": it improves the fit only on the data it was fitted to" if lowered else ""
+            why += " (each fold refitted completely)" if self.heldout_refit else ""
             failed.append(f"does not lower the held-out error ({hb:.4g} -> {after}){why}")
         if not self.admissible:
             failed.append(f"not physical: {self.violation}")

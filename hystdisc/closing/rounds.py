@@ -326,6 +326,22 @@ class Round:
             else:
                 verdict.heldout_skipped = True
         hb, ha = cur.heldout_rms, verdict.heldout_rms_after
+        if (
+            self.heldout
+            and hb is not None
+            and (ha is None or ha >= hb)
+            and verdict.improves
+            and verdict.significant
+            and verdict.admissible
+        ):
+            # everything but the held-out error says yes: before rejecting, the folds are
+            # refitted completely (the quick estimate is a few steps from a linear one, and
+            # one that leaves the basin judges the fitting, not the model)
+            with np.errstate(all="ignore"):
+                fitter = OutputErrorFitter(self.data, new.par, max_nfev=self.max_nfev)
+                new = fitter.heldout_at(new, full=True)
+            verdict.heldout_rms_after = ha = new.heldout_rms
+            verdict.heldout_refit = True
         verdict.predicts = hb is None or (ha is not None and ha < hb)
         return new, verdict
 

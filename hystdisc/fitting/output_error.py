@@ -19,20 +19,20 @@ run, so only that run is re-simulated).
 At the optimum the Jacobian gives 95 % intervals and an identifiability check
 (:func:`~hystdisc.fitting.intervals.fit_intervals`), BIC, and held-out errors: each fold
 (one test condition, or one run when all runs share one) is left out, the fit without it
-is estimated by a Gauss-Newton step from the joint optimum and :data:`HELDOUT_STEPS`
-Levenberg-Marquardt iterations on the other runs, and the fold's runs are simulated with
-it.
+is estimated by a Gauss-Newton step from the joint optimum and a few Levenberg-Marquardt
+iterations on the other runs, and the fold's runs are simulated with it
+(:mod:`~hystdisc.fitting.heldout`).
 """
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.interpolate import CubicSpline
 
 from hystdisc.errors import HystdiscError
+from hystdisc.fitting.heldout import HeldOutFolds
 from hystdisc.fitting.intervals import fit_intervals
 from hystdisc.fitting.jacobian import check_jacobian_mode, difference_jacobian, exact_jacobian
 from hystdisc.fitting.lm import levenberg_marquardt
@@ -49,16 +49,6 @@ POLISH_MIN_ITER = 2
 BULK_MIN_GAIN = 2.0
 #: Relative cost change at which the bulk fit hands over to the full data.
 BULK_TOL = 1e-5
-#: Levenberg-Marquardt iterations of each held-out fold after its Gauss-Newton step
-#: (a fold that leaves out a whole test condition moves the fit beyond what one linear
-#: step predicts).
-HELDOUT_STEPS = 2
-#: A fold's Gauss-Newton step is its refit, without the Levenberg-Marquardt iterations,
-#: when the training runs' RSS at the step exceeds the linear prediction by less than this
-#: many noise variances (the step is then where the iterations would end, to a small part
-#: of one parameter's chi-square; measured on data_synth, the held-out RMS agrees to 4-6
-#: digits in those folds, while a fit at a bound misses by thousands of variances).
-HELDOUT_GN_TRUST = 0.1
 
 
 @dataclass
@@ -162,7 +152,7 @@ class OEFit:
         return rigid(self.x) if rigid is not None else self.par.terms(self.x)
 
 
-class OutputErrorFitter:
+class OutputErrorFitter(HeldOutFolds):
     """Fit a :class:`Parametrization` to :class:`FitData` by output error.
 
     Parameters
@@ -460,137 +450,3 @@ class OutputErrorFitter:
             if fit.heldout_rms is None:
                 fit.notes.append(self.heldout_note)
         return fit
-
-    def heldout_at(self, fit: OEFit) -> OEFit:
-        """``fit`` (of this parametrization to this data) with its held-out error, computed
-        at its optimum when it has none (one Jacobian, then :meth:`_heldout`)."""
-        if fit.heldout_rms is not None or self.data.n_runs < 2:
-            return fit
-        v = np.concatenate([np.asarray(fit.x, dtype=float), np.asarray(fit.nuisance).ravel()])
-        rms, preds = self._heldout(v, self.residuals(v), self.jacobian(v))
-        # why there is none (a fold's prediction diverged) is said, as fit() says it
-        notes = fit.notes if rms is not None else [*fit.notes, self.heldout_note]
-        return dataclasses.replace(fit, heldout_rms=rms, heldout_predictions=preds, notes=notes)
-
-    def _at_bounds(self, v: np.ndarray) -> np.ndarray:
-        """Mask of the entries of ``v`` (parameters, then initial states) at a bound."""
-        out = np.zeros(len(v), dtype=bool)
-        x, lo, hi = v[: self.npar], self.par.lower, self.par.upper
-        tol = 1e-6 * np.maximum(np.abs(x), 1e-6)
-        with np.errstate(invalid="ignore"):
-            out[: self.npar] = (x - lo <= tol) | (hi - x <= tol)
-        return out
-
-    def _fold_refit(
-        self, fold: list[int], v_gn: np.ndarray, rss_gn: float | None, full: bool = False
-    ) -> np.ndarray:
-        """The parameters fitted without the runs ``fold``: the Gauss-Newton estimate
-        ``v_gn`` when the other runs' RSS there is its linear prediction ``rss_gn`` (within
-        :data:`HELDOUT_GN_TRUST` noise variances), else :data:`HELDOUT_STEPS`
-        Levenberg-Marquardt iterations on the other runs from it (the linear step alone
-        misjudges a fold that moves the fit far). ``full``: a complete fit on the other
-        runs from ``v_gn`` (up to ``max_nfev`` iterations; ``rss_gn`` is not used), for a
-        fold whose quick estimate did not predict it."""
-        x = np.clip(v_gn[: self.npar], self.par.lower, self.par.upper)
-        if HELDOUT_STEPS < 1 and not full:
-            return x
-        train = [r for r in range(self.data.n_runs) if r not in fold]
-        sub = OutputErrorFitter(
-            self.data.subset(train), self.par, self.max_nfev, self.rel_step, self.jacobian_mode
-        )
-        _, nu = self._split(v_gn)
-        v0 = np.concatenate([x, nu[train].ravel()])
-        with np.errstate(all="ignore"):
-            r0 = sub.residuals(v0)
-        if not full and (
-            np.all(np.isfinite(r0))
-            and abs(r0 @ r0 - rss_gn) < HELDOUT_GN_TRUST * self.data.noise_std**2
-        ):
-            return x
-        free = np.full(sub.nnu * len(train), np.inf)
-        lo = np.concatenate([self.par.lower, -free])
-        hi = np.concatenate([self.par.upper, free])
-        try:
-            with np.errstate(all="ignore"):
-                vs, *_ = levenberg_marquardt(
-                    sub.residuals,
-                    sub.jacobian,
-                    v0,
-                    lo,
-                    hi,
-                    max_iter=self.max_nfev if full else HELDOUT_STEPS,
-                    gram=sub.gram,
-                    r0=r0,  # the trust test's simulation is the first iteration's
-                )
-        except (HystdiscError, np.linalg.LinAlgError, ValueError):
-            return x
-        return vs[: self.npar] if np.all(np.isfinite(vs)) else x
-
-    def _predict_fold(
-        self, x: np.ndarray, fold: list[int], nu: np.ndarray
-    ) -> tuple[list[np.ndarray], list]:
-        """The fold's runs simulated with the free parameters ``x``, and each run's
-        divergence status."""
-        tm = self.par.model(x)
-        st: list = []
-        out = self.par.simulate(self.data, [tm] * len(fold), fold, [nu[r] for r in fold], st)
-        return out, st
-
-    def _heldout(self, v, res, Jm, gram=None):
-        """Leave one fold out (a test condition, or a run: :meth:`FitData.folds`): one
-        Gauss-Newton step from the joint optimum without the fold's rows, then simulate the
-        fold's runs. Returns the pooled held-out RMS and each run's prediction."""
-        x, nu = self._split(v)
-        sq = 0.0
-        cnt = 0
-        preds: list[np.ndarray | None] = [None] * self.data.n_runs
-        G = self.gram(Jm) if gram is None else gram
-        g = Jm.T @ res
-        for fold in self.data.folds():
-            rows = np.concatenate(
-                [np.arange(self.row_offsets[r], self.row_offsets[r + 1]) for r in fold]
-            )
-            own = np.concatenate(
-                [np.arange(self.npar + r * self.nnu, self.npar + (r + 1) * self.nnu) for r in fold]
-            ).astype(int)
-            cols = ~self._at_bounds(v)  # a parameter held at a bound stays there
-            cols[own] = False
-            # the fold's rows touch the parameters and its runs' own initial states only
-            nz = np.r_[: self.npar, own]
-            Jr = Jm[rows][:, nz] if len(fold) > 1 else Jm[rows[0] : rows[-1] + 1, nz]
-            Go = G.copy()
-            Go[np.ix_(nz, nz)] -= Jr.T @ Jr
-            Go = Go[np.ix_(cols, cols)]
-            go = g.copy()
-            go[nz] -= Jr.T @ res[rows]
-            go = go[cols]
-            scale = np.sqrt(np.clip(np.diag(Go), 0, None))
-            scale[scale == 0] = 1.0
-            Gs = Go / np.outer(scale, scale)
-            delta = -np.linalg.lstsq(Gs, go / scale, rcond=1e-12)[0] / scale
-            vr = v.copy()
-            vr[cols] += delta
-            # the other runs' RSS at the step, as the linear model predicts it
-            keep = np.ones(len(res), dtype=bool)
-            keep[rows] = False
-            rss_gn = float(res[keep] @ res[keep] + 2 * go @ delta + delta @ Go @ delta)
-            xr = self._fold_refit(fold, vr, rss_gn)
-            out, st = self._predict_fold(xr, fold, nu)
-            if any(st):
-                # the quick estimate can leave the stable region on its own: the fold is
-                # fitted fully from the joint optimum before the fit is called unstable
-                vj = np.concatenate([x, nu.ravel()])
-                out, st = self._predict_fold(self._fold_refit(fold, vj, None, True), fold, nu)
-            for r, pr, bad in zip(fold, out, st, strict=True):
-                if bad:
-                    self.heldout_note = (
-                        f"the held-out prediction of run {self.data.names[r]} diverged, also "
-                        "after a full refit without it from the joint optimum: the fit without "
-                        "that run is unstable there (held-out RMS not reported)"
-                    )
-                    return None, None
-                e = (pr - self.data.y[r])[self.masks[r]]
-                sq += float(e @ e)
-                cnt += e.size
-                preds[r] = pr
-        return float(np.sqrt(sq / max(cnt, 1))), preds

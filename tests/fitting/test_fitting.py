@@ -131,29 +131,29 @@ def test_intervals_contain_the_truth_on_noisy_data():
 def test_a_fold_whose_linear_step_is_exact_skips_the_iterations(monkeypatch):
     import dataclasses
 
-    from hystdisc.fitting import output_error
+    from hystdisc.fitting import heldout
 
     fd = _release_data(noise=1e-3, seed=11)
     par = FamilyParametrization("dahl", "release", _start(1.1))
     fitter = OutputErrorFitter(fd, par, max_nfev=60)
     fit = fitter.fit(heldout=False)
     calls = []
-    lm = output_error.levenberg_marquardt
+    lm = heldout.levenberg_marquardt
 
     def counted(*args, **kwargs):
         calls.append(1)
         return lm(*args, **kwargs)
 
-    monkeypatch.setattr(output_error, "levenberg_marquardt", counted)
+    monkeypatch.setattr(heldout, "levenberg_marquardt", counted)
     # at the noise floor each fold's Gauss-Newton step is where its iterations end
     fast = fitter.heldout_at(fit).heldout_rms
     assert not calls
-    monkeypatch.setattr(output_error, "HELDOUT_GN_TRUST", 0.0)
+    monkeypatch.setattr(heldout, "HELDOUT_GN_TRUST", 0.0)
     slow = OutputErrorFitter(fd, par, max_nfev=60).heldout_at(fit).heldout_rms
     assert len(calls) == fd.n_runs  # one fold per run, each iterated
     assert fast == pytest.approx(slow, rel=1e-4)
     # a fit far from its optimum: the step misses its linear prediction and is iterated
-    monkeypatch.setattr(output_error, "HELDOUT_GN_TRUST", 0.1)
+    monkeypatch.setattr(heldout, "HELDOUT_GN_TRUST", 0.1)
     calls.clear()
     off = dataclasses.replace(fit, x=fit.x * 1.3)
     OutputErrorFitter(fd, par, max_nfev=60).heldout_at(off)
@@ -241,3 +241,36 @@ def test_a_state_space_model_is_fitted_like_a_family():
     )
     with pytest.raises(HystdiscError, match="is a state-space model, not a term model"):
         par.terms(par.x0)
+
+
+def test_full_heldout_is_the_refit_of_each_fold_from_the_joint_optimum():
+    """``heldout_at(full=True)``: every fold fitted completely on the other runs from the
+    joint optimum, then predicted: the same as doing that by hand with a fitter of the
+    other runs; and it recomputes a fit that already has a (quick) held-out error."""
+    fd = _release_data(noise=1e-3, seed=11)
+    par = FamilyParametrization("dahl", "release", _start(1.1))
+    fitter = OutputErrorFitter(fd, par, max_nfev=60)
+    fit = fitter.fit(heldout=True)
+    full = OutputErrorFitter(fd, par, max_nfev=60).heldout_at(fit, full=True)
+    assert full.heldout_rms is not None and full.heldout_rms != fit.heldout_rms
+    sq = n = 0.0
+    for fold in fd.folds():
+        train = [r for r in range(fd.n_runs) if r not in fold]
+        sub = fd.subset(train)
+        start = np.concatenate([fit.x, np.asarray(fit.nuisance)[train].ravel()])
+        vs, *_ = levenberg_marquardt(
+            OutputErrorFitter(sub, par, max_nfev=60).residuals,
+            OutputErrorFitter(sub, par, max_nfev=60).jacobian,
+            start,
+            np.concatenate([par.lower, np.full(start.size - len(par.names), -np.inf)]),
+            np.concatenate([par.upper, np.full(start.size - len(par.names), np.inf)]),
+            max_iter=60,
+        )
+        tm = par.model(vs[: len(par.names)])
+        preds = par.simulate(fd, [tm] * len(fold), fold, [fit.nuisance[r] for r in fold], [])
+        for r, p in zip(fold, preds, strict=True):
+            e = (p - fd.y[r])[fd.mask[r]]
+            sq, n = sq + float(e @ e), n + e.size
+    assert full.heldout_rms == pytest.approx(np.sqrt(sq / n), rel=1e-6)
+    # at the noise floor the quick estimate is the refit, to a fraction of the noise
+    assert full.heldout_rms == pytest.approx(fit.heldout_rms, rel=0.05)
