@@ -7,7 +7,8 @@ parameters to a model and simulates it on the runs as the fit sees them
 (:class:`~hystdisc.measurement.FitData`, :mod:`hystdisc.fitting.simulate`);
 :class:`OutputErrorFitter` fits it with :func:`levenberg_marquardt` and returns an
 :class:`OEFit` (parameters, 95 % intervals and identifiability:
-:mod:`~hystdisc.fitting.intervals`, BIC, held-out error); how it takes its Jacobian is
+:mod:`~hystdisc.fitting.intervals`, BIC, held-out error: :mod:`~hystdisc.fitting.heldout`);
+how it takes its Jacobian is
 :data:`~hystdisc.fitting.jacobian.JACOBIAN_MODES`;
 :mod:`hystdisc.fitting.multistart` makes the fits global (several starts, nesting kept
 consistent). What the fits are given is made in :mod:`hystdisc.measurement`, what they
