@@ -226,3 +226,39 @@ def test_predict_warns_beyond_the_training_envelope(tmp_path, capsys):
         ]
     )
     assert "largest in training" not in capsys.readouterr().err
+
+
+# ----------------------------------------------------------------------------- fold refits
+
+
+def test_a_quick_fold_estimate_that_says_no_is_checked_by_full_refits(monkeypatch):
+    """An effect that passes every test but the held-out one has its folds refitted
+    completely before it is rejected: here the quick estimate of every refit carrying the
+    (true) Coulomb friction is made to predict ten times worse, and the effect is still
+    accepted, on the full refits' held-out error; the family fits are not refitted."""
+    from hystdisc.fitting import heldout
+    from hystdisc.models import Model
+
+    real = heldout.HeldOutFolds._heldout
+    calls = []
+
+    def quick_misjudges(self, v, res, Jm, gram=None, full=False):
+        rms, preds = real(self, v, res, Jm, gram, full)
+        carrying = "coulomb" in getattr(self.par, "effects", ())
+        calls.append((carrying, full))
+        return (10 * rms if carrying and not full and rms is not None else rms), preds
+
+    monkeypatch.setattr(heldout.HeldOutFolds, "_heldout", quick_misjudges)
+    data = generate(
+        Model("dahl", effects={"coulomb": {"f_c": 0.2}}),
+        currents=(0.0, 0.5, 1.0),
+        duration=2.0,
+        noise=1e-3,
+        seed=102,
+    )
+    disc = Discovery(model="dahl", shapes=("dahl",)).fit(data)
+    assert disc.effects_ == ["coulomb"], disc.results_.effects_tried
+    assert (True, True) in calls  # the full refits were asked for the effect's verdict
+    assert (False, True) not in calls  # and for nothing else
+    (entry,) = disc.results_.effects
+    assert entry.heldout_rms_after < entry.heldout_rms_before
