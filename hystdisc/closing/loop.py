@@ -197,6 +197,7 @@ def augment(
     noise_samples: list[np.ndarray] | None = None,
     restart: Restart | None = None,
     failures: Failures | None = None,
+    first: tuple[str, ...] = (),
 ) -> LoopResult:
     """Diagnose, add the effects that improve BIC, and test the final residual.
 
@@ -238,6 +239,10 @@ def augment(
         The training envelope (default: measured on ``data``).
     decided : dict of str to str, optional
         Effects an earlier step decided (name -> why): not candidates.
+    first : tuple of str
+        Effects an earlier step saw signs of: refitted in the first round whatever their
+        rank (a channel delay the stage-1 scan saw but could not tell from the structure's
+        misfit).
     noise_samples : list of ndarray, optional
         A sample of the measurement noise (period-to-period differences): the final
         residual's whiteness is judged against its spectrum
@@ -308,7 +313,7 @@ def augment(
             rnd.screen(eq, scores, diag, s0)  # far from the noise: the global view first
             screened = True
         if not (screened and rnd.done()):
-            for s in refit_queue(scores):
+            for s in refit_queue(scores, first if round_no == 1 else ()):
                 if s.name not in rnd.results:
                     rnd.attempt(s)
         if not rnd.done() and not screened and eq is not None and current.rms > good_rms:
@@ -392,6 +397,7 @@ def close_loop(
     noise_samples: list[np.ndarray] | None = None,
     restart: Restart | None = None,
     failures: Failures | None = None,
+    first: tuple[str, ...] = (),
 ) -> LoopResult:
     """Close the loop on the fit of the selected (or declared) family.
 
@@ -432,6 +438,8 @@ def close_loop(
         the current optimum (:data:`~hystdisc.closing.rounds.Restart`;
         :class:`~hystdisc.estimator.Discovery` gives one for the offset: the family fitted
         again, with all its starts, on the data shifted by the refit's neutral angle).
+    first : tuple of str
+        Effects refitted in the first round whatever their rank (see :func:`augment`).
 
     Returns
     -------
@@ -455,6 +463,7 @@ def close_loop(
             noise_samples=noise_samples,
             restart=restart,
             failures=failures,
+            first=first,
         )
     except Exception as exc:  # noqa: BLE001 - with failures given, every failure is isolated
         expected = (HystdiscError, np.linalg.LinAlgError, ValueError, FloatingPointError)

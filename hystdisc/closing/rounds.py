@@ -53,7 +53,7 @@ def snapshot(scores: list[EffectScore]) -> list[EffectScore]:
     return [dataclasses.replace(s) for s in scores]
 
 
-def refit_queue(scores: list[EffectScore]) -> list[EffectScore]:
+def refit_queue(scores: list[EffectScore], first: tuple[str, ...] = ()) -> list[EffectScore]:
     """Candidates worth a local output-error refit this round (at most three), then the
     structural effects worth a refit from their starts.
 
@@ -68,6 +68,8 @@ def refit_queue(scores: list[EffectScore]) -> list[EffectScore]:
     ----------
     scores : list of EffectScore
         The round's diagnosis, ranked by evidence.
+    first : tuple of str
+        Effects refitted first whatever their rank (an earlier step saw signs of them).
 
     Returns
     -------
@@ -95,7 +97,9 @@ def refit_queue(scores: list[EffectScore]) -> list[EffectScore]:
     # a structural effect's evidence is an achieved fit at a start, not a local
     # prediction: it is refitted whenever a start predicts a BIC drop or the residual
     # shows its signature
-    return queue[:MAX_REFITS_PER_ROUND] + structural
+    forced = [s for s in scores if s.name in first and s.starts is None]
+    queue = forced + [s for s in queue if s not in forced][:MAX_REFITS_PER_ROUND]
+    return queue + [s for s in structural if s not in forced]
 
 
 def start_pick(scores: list[EffectScore]) -> EffectScore | None:

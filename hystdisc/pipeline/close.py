@@ -23,6 +23,7 @@ from hystdisc.closing.open_library import (
 from hystdisc.closing.refit import has_spring
 from hystdisc.closing.reselect import Context
 from hystdisc.closing.shift import shift_restart
+from hystdisc.discovery.delay import MIN_DBIC
 from hystdisc.errors import HystdiscWarning
 from hystdisc.fitting import OEFit
 from hystdisc.models import EFFECTS
@@ -70,7 +71,21 @@ def _loop(state: State, fit: OEFit, restart: Callable | None) -> LoopResult:
         noise_samples=state.noise.samples if state.noise is not None else None,
         restart=restart,
         failures=state.failures,
+        first=seen_delay(state),
     )
+
+
+def seen_delay(state: State) -> tuple[str, ...]:
+    """The channel-delay effect, when stage 1's scan saw a lag (its BIC fell by more than
+    :data:`~hystdisc.discovery.delay.MIN_DBIC`) too small a share of the equation error to
+    enter every family (:data:`~hystdisc.discovery.delay.MIN_SHARE`): the structure's own
+    misfit can remove as large a share (a tanh or Spencer damper's, without any delay:
+    8-23 % on the driven suite's sets), so the closing loop refits it whatever its rank
+    and its held-out error decides."""
+    scan = state.delay_scan
+    if scan is None or scan.found or not scan.dbic < -MIN_DBIC:
+        return ()
+    return tuple(name for name, eff in EFFECTS.items() if eff.delay_param)
 
 
 def open_library(state: State, fit: OEFit) -> ResidualTerms | None:
