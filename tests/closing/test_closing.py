@@ -24,7 +24,7 @@ from hystdisc.closing import (
     candidate_effects,
     score_effects,
 )
-from hystdisc.data import Dataset, Run
+from hystdisc.data import Dataset
 from hystdisc.discovery import FAMILY_SHAPE
 from hystdisc.estimator import Discovery
 from hystdisc.fitting import FamilyParametrization
@@ -172,29 +172,6 @@ def test_no_false_effects_on_clean_data(family):
         # nothing accepted: the final model has the family's own terms only
         assert set(res.model["torque"]) == set(res.families[family]["term_model"]["torque"])
     assert accepted == []
-
-
-# ----------------------------------------------------------------------------- beyond the catalogue
-
-
-def test_second_resonance_is_unexplained():
-    """A lightly damped 6 Hz mode of the rig (not in the catalogue) is named, not patched."""
-    f0, zeta, amp = 6.0, 0.03, 4e-3
-    base = generate(Model("lugre"), currents=CURRENTS, duration=3.0, noise=NOISE, seed=77)
-    w = 2 * np.pi * f0
-    runs = [
-        Run(r.name, r.t, r.theta + amp * np.exp(-zeta * w * r.t) * np.sin(w * r.t), r.current)
-        for r in base.runs
-    ]
-    disc = _discover(Dataset(runs, "release", "lugre with a second mode"), "lugre")
-    res = disc.results_
-    assert res.unexplained is True
-    assert res.residual["dominant_hz"] == pytest.approx(f0, rel=0.10)
-    assert res.residual["whiteness_p"] < 0.01
-    assert "resonance near 6.0 Hz" in res.unexplained_text
-    assert "no catalogued effect explains" in res.unexplained_text
-    assert disc.effects_ == []
-    assert "Unexplained: a resonance near 6.0 Hz" in res.report()
 
 
 # ----------------------------------------------------------------------------- pieces
