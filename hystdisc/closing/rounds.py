@@ -54,8 +54,8 @@ def snapshot(scores: list[EffectScore]) -> list[EffectScore]:
 
 
 def refit_queue(scores: list[EffectScore], first: tuple[str, ...] = ()) -> list[EffectScore]:
-    """Candidates worth a local output-error refit this round (at most three), then the
-    structural effects worth a refit from their starts.
+    """Candidates worth a local output-error refit this round (at most three, after the
+    ones an earlier step saw), then the structural effects worth a refit from their starts.
 
     The top two candidates by output-error evidence and the top by equation-error
     evidence (a second view that catches an effect the model's own terms mimic locally),
