@@ -14,7 +14,8 @@ and frequency, each at 0, 0.25, 0.5, 0.75 and 1 A), read in place with hystdisc'
 authors did). A *condition* and the NRMSE are those of ``benchmarks/mr_damper.py``: a
 condition is the five files of one (amplitude, frequency) (``tests_of``), and the
 leave-one-condition-out NRMSE of a condition is the RMS force error over its five files
-divided by the RMS measured force over the same samples (``pooled_errors``, reused as is).
+divided by the RMS measured force over the same samples (``pooled_force_errors``, the
+arithmetic of its ``pooled_errors``).
 
 1. The authors' modified Bouc-Wen model (their ``AMR_ID_BoucWen.slx``, parameters of their
    ``parametros.mat`` as given in ``$HYSTDISC_DATA/README.md``), driven by each file's ``x``
@@ -41,13 +42,11 @@ the commit its header records.
 from __future__ import annotations
 
 import argparse
-import csv
 import math
 import os
 import re
 import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -133,23 +132,20 @@ def load_runs(folder: Path) -> tuple[dict[str, list], dict]:
     groups : dict
         Condition name -> list of :class:`hystdisc.data.Run` (currents in order).
     helpers : dict
-        ``pooled_errors`` of ``benchmarks/mr_damper.py``.
+        ``pooled_force_errors`` of ``benchmarks/mr_damper.py``.
     """
     sys.path.insert(0, str(ROOT))
-    from benchmarks.mr_damper import pooled_errors, tests_of
+    from benchmarks.mr_damper import pooled_force_errors, tests_of
     from hystdisc.data import load
 
     ds = load(str(folder), rig=str(RIG))
     by_name = {r.name: r for r in ds.runs}
     groups = {k: [by_name[f.stem] for f in fs] for k, fs in tests_of(folder).items()}
-    return groups, {"pooled_errors": pooled_errors}
+    return groups, {"pooled_force_errors": pooled_force_errors}
 
 
-def pooled_nrmse(runs: list, preds: list[np.ndarray], pooled_errors) -> float:
+def pooled_nrmse(runs: list, preds: list[np.ndarray], pooled_force_errors) -> float:
     """NRMSE of predictions over several runs, by ``benchmarks/mr_damper.py``'s helper.
-
-    The predictions are written as ``hystdisc predict`` writes them (columns ``torque`` and
-    ``torque_pred``) so the very same function computes the number.
 
     Parameters
     ----------
@@ -157,22 +153,17 @@ def pooled_nrmse(runs: list, preds: list[np.ndarray], pooled_errors) -> float:
         Runs with the measured force ``torque`` (N).
     preds : list of ndarray
         Predicted force (N), one array per run.
-    pooled_errors : callable
-        ``benchmarks.mr_damper.pooled_errors``.
+    pooled_force_errors : callable
+        ``benchmarks.mr_damper.pooled_force_errors`` (what its ``pooled_errors`` computes
+        on a ``hystdisc predict`` output).
 
     Returns
     -------
     float
         RMS force error / RMS measured force over all samples of the runs.
     """
-    with tempfile.TemporaryDirectory() as tmp:
-        path = Path(tmp) / "pred.csv"
-        with path.open("w", newline="", encoding="utf-8") as fh:
-            w = csv.writer(fh)
-            w.writerow(["torque", "torque_pred"])
-            for r, p in zip(runs, preds, strict=True):
-                w.writerows(zip(map(repr, r.torque.tolist()), map(repr, p.tolist()), strict=True))
-        return pooled_errors(path)[1]
+    y = np.concatenate([r.torque for r in runs])
+    return pooled_force_errors(y, np.concatenate(preds))[1]
 
 
 def file_nrmse(measured: np.ndarray, predicted: np.ndarray) -> float:
@@ -315,7 +306,7 @@ def fit_gbm(runs: list, lags: tuple[float, ...], hyper: dict):
     return model.fit(xtr, ytr)
 
 
-def gbm_loco(groups: dict[str, list], pooled_errors) -> dict:
+def gbm_loco(groups: dict[str, list], pooled_force_errors) -> dict:
     """Nested leave-one-condition-out of the black box.
 
     For each left-out condition, every (lag set, hyper-parameters) pair is scored by
@@ -327,7 +318,7 @@ def gbm_loco(groups: dict[str, list], pooled_errors) -> dict:
     ----------
     groups : dict
         Condition -> runs.
-    pooled_errors : callable
+    pooled_force_errors : callable
         The NRMSE helper of ``benchmarks/mr_damper.py``.
 
     Returns
@@ -347,7 +338,7 @@ def gbm_loco(groups: dict[str, list], pooled_errors) -> dict:
             lags = LAG_SETS[pair[0]]
             model = fit_gbm([r for c in train for r in groups[c]], lags, HYPER[pair[1]])
             preds = [model.predict(features(r, lags)) for r in groups[test]]
-            cache[key] = pooled_nrmse(groups[test], preds, pooled_errors)
+            cache[key] = pooled_nrmse(groups[test], preds, pooled_force_errors)
         return cache[key]
 
     plain = {p: {} for p in pairs}
@@ -436,7 +427,7 @@ def report(groups, authors, gbm, hd_commit, hd_rows, wall, cpu, commit) -> str:
         "the shared 2-core machine.",
         "",
         "Leave one test condition out, NRMSE = RMS force error / RMS force over the five files "
-        "of the left-out condition (`pooled_errors` of `benchmarks/mr_damper.py`):",
+        "of the left-out condition (`pooled_force_errors` of `benchmarks/mr_damper.py`):",
         "",
         f"- **hystdisc**: the final model's column above (discover on the other 25 files, "
         f"`hystdisc predict`), measured at commit {hd_commit}; not rerun here.",
@@ -513,7 +504,7 @@ def main(argv=None) -> int:
 
     t0, c0 = time.perf_counter(), time.process_time()
     groups, helpers = load_runs(folder)
-    pooled_errors = helpers["pooled_errors"]
+    pooled_force_errors = helpers["pooled_force_errors"]
 
     print("authors' model on the 30 files", file=sys.stderr, flush=True)
     per_file, preds = {}, {}
@@ -523,7 +514,7 @@ def main(argv=None) -> int:
             preds[r.name] = f
             per_file[r.name] = file_nrmse(r.torque, f)
     pooled = {
-        c: pooled_nrmse(runs, [preds[r.name] for r in runs], pooled_errors)
+        c: pooled_nrmse(runs, [preds[r.name] for r in runs], pooled_force_errors)
         for c, runs in groups.items()
     }
     # step check on the condition the README quotes worst: half the step
@@ -547,7 +538,7 @@ def main(argv=None) -> int:
 
     print("gradient boosting, nested leave-one-condition-out", file=sys.stderr, flush=True)
     with threadpool_limits(1):
-        gbm = gbm_loco(groups, pooled_errors)
+        gbm = gbm_loco(groups, pooled_force_errors)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     hd_commit, hd_rows = hystdisc_loco()
     text = report(groups, authors, gbm, hd_commit, hd_rows, wall, cpu, git_commit())

@@ -86,17 +86,18 @@ def hystdisc(*args: str, log: Path | None = None) -> tuple[str, float]:
 
 def pooled_errors(pred_csv: Path) -> tuple[float, float]:
     """Pooled RMS force error (N) and NRMSE of a ``hystdisc predict`` output."""
-    err2 = ref2 = 0.0
     with pred_csv.open(encoding="utf-8") as fh:
-        rows = csv.DictReader(fh)
-        meas, pred = "torque", "torque_pred"
-        n = 0
-        for row in rows:
-            y, p = float(row[meas]), float(row[pred])
-            err2 += (p - y) ** 2
-            ref2 += y * y
-            n += 1
-    return float(np.sqrt(err2 / n)), float(np.sqrt(err2 / ref2))
+        rows = [(float(r["torque"]), float(r["torque_pred"])) for r in csv.DictReader(fh)]
+    y, p = np.array(rows, dtype=float).reshape(-1, 2).T
+    return pooled_force_errors(y, p)
+
+
+def pooled_force_errors(measured: np.ndarray, predicted: np.ndarray) -> tuple[float, float]:
+    """Pooled RMS force error (N) and NRMSE (RMS error / RMS measured force) of samples
+    pooled over several runs."""
+    e = np.asarray(predicted, dtype=float) - np.asarray(measured, dtype=float)
+    err2, ref2 = float(e @ e), float(np.asarray(measured, dtype=float) @ measured)
+    return float(np.sqrt(err2 / e.size)), float(np.sqrt(err2 / ref2))
 
 
 def full_set(files: list[str], work: Path, effects: bool) -> dict:
