@@ -63,6 +63,7 @@ EFFECTS: dict[str, Any] = {
     "current_bias": "hystdisc.models.effects:CURRENT_BIAS",
     "asymmetric_damping": "hystdisc.models.effects:ASYMMETRIC_DAMPING",
     "asymmetric_yield": "hystdisc.models.effects:ASYMMETRIC_YIELD",
+    "backlash": "hystdisc.models.backlash:BACKLASH",
 }
 
 #: Experiment name -> ``module:attribute`` of its experiment object.

@@ -19,6 +19,7 @@ from hystdisc.discovery.differentiation import differentiate
 from hystdisc.measurement.chain import delayed, measured_output, unfiltered_motion
 from hystdisc.measurement.motion import estimate_motion
 from hystdisc.models import TermModel
+from hystdisc.models.backlash import play_motion
 from hystdisc.registry import get_experiment
 from hystdisc.simulation import simulate_driven_runs, simulate_mech, simulate_system
 
@@ -130,14 +131,17 @@ def predict_dataset(
     windows = filter_windows(dataset.filter, runs, dataset.source) if chans else [0] * len(runs)
     out_windows = windows if exp.output in chans else [0] * len(runs)
     if isinstance(tm, TermModel):
-        delay = float(tm.delay)
+        delay, gap = float(tm.delay), float(tm.play)
     else:
-        delay = tm[0].output_delay(tm[1])
-    if exp.motion_imposed and delay != 0.0:
-        # the force channel lags: the damper answered the motion delay s earlier (as the
-        # fit sees it: hystdisc.fitting.simulate.delayed_motion)
+        delay, gap = tm[0].output_delay(tm[1]), tm[0].input_play(tm[1])
+    if exp.motion_imposed and (delay != 0.0 or gap != 0.0):
+        # the force channel lags: the damper answered the motion delay s earlier, through
+        # its backlash (as the fit sees it: hystdisc.fitting.simulate.delayed_motion)
         for r, d in zip(runs, ders, strict=True):
-            d.theta, d.theta_dot = delayed(r.t, d.theta, delay), delayed(r.t, d.theta_dot, delay)
+            if delay != 0.0:
+                d.theta = delayed(r.t, d.theta, delay)
+                d.theta_dot = delayed(r.t, d.theta_dot, delay)
+            d.theta, d.theta_dot = play_motion(d.theta, d.theta_dot, gap)
         delay = 0.0
     preds = _predict(tm, runs, ders, exp, input_hold)
     return [

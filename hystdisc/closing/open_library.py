@@ -40,12 +40,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import pysindy as ps
-from numba import njit
 
 from hystdisc.closing.scores import equation_state
 from hystdisc.discovery.selection import seeded_fit
 from hystdisc.fitting import OutputErrorFitter
 from hystdisc.models import EFFECTS, TORQUE_TERMS, TermModel
+from hystdisc.models.backlash import play
 from hystdisc.registry import get_experiment
 from hystdisc.stats import bic
 
@@ -61,18 +61,6 @@ TANH_SCALES = (0.02, 0.1)
 MAX_ROWS = 6000
 #: At most this many terms along the forward path.
 MAX_TERMS = 8
-
-
-@njit(cache=True)
-def play(x, r):  # pragma: no cover - compiled
-    """The play (backlash) operator: ``y`` follows ``x`` only once ``|x - y| > r``."""
-    y = np.empty_like(x)
-    if x.size == 0:
-        return y
-    y[0] = x[0]
-    for k in range(1, x.size):
-        y[k] = min(max(y[k - 1], x[k] - r), x[k] + r)
-    return y
 
 
 @dataclass

@@ -250,6 +250,29 @@ def _equation_evidence(
     return out
 
 
+#: Where an effect's output is not differentiable at its off value (a play of width
+#: ``r`` changes the force as ``sqrt(r)`` near the reversals), its score column is the
+#: secant to this share of the smallest run's motion amplitude instead of the tangent.
+PLAY_PROBE = 0.02
+
+
+def _secant_columns(data: FitData, fitter, par, v: np.ndarray, r: np.ndarray, J: np.ndarray):
+    """Replace (in place) the columns of ``J`` of the parameters that set a driven run's
+    backlash (:attr:`~hystdisc.models.Effect.play_param`) by the secant of the residuals
+    ``r`` to :data:`PLAY_PROBE` of the smallest motion amplitude: the tangent at a width
+    of 0 sees only a sliver of what a width does, and the effect would rank below
+    effects that explain less."""
+    plays = {e.play_param for e in (EFFECTS[n] for n in par.effects) if e.play_param}
+    if not plays or not data.exp.motion_imposed:
+        return
+    probe = PLAY_PROBE * min(0.5 * float(np.ptp(th)) for th in data.theta)
+    for j, name in enumerate(par.names):
+        if name in plays and probe > v[j]:  # at its off value (inside its bound)
+            vj = v.copy()
+            vj[j] = probe
+            J[:, j] = (fitter.residuals(vj) - r) / (probe - v[j])
+
+
 def score_effects(
     data: FitData, fit: OEFit, candidates: Sequence[str], eq=None
 ) -> list[EffectScore]:
@@ -281,6 +304,7 @@ def score_effects(
     with np.errstate(all="ignore"):
         r = fitter.residuals(v)
         J = fitter.jacobian(v)
+        _secant_columns(data, fitter, par, v, r, J)
     n0 = len(fit.par.names)
     npar = len(par.names)
     rows = np.cumsum([0] + [int(m.sum()) for m in data.mask])

@@ -163,18 +163,22 @@ def map_derivative(
         Shape ``(runs, vector entries, parameters)``.
     delays : ndarray of bool
         The parameters that move the model's channel delay.
+    plays : ndarray of bool
+        The parameters that move the model's backlash (:attr:`TermModel.play`).
     """
     R = data.n_runs
     runs = list(range(R))
     V0 = kernel_vectors(data, [tm0] * R, runs)
     D = np.zeros((R, V0.shape[1], x.size))
     delays = np.zeros(x.size, dtype=bool)
+    plays = np.zeros(x.size, dtype=bool)
     for j, xj, wgt in map_stencil(x, par):
         tm = par.model(xj)
         # the weights sum to 0 with x's own: differences from V0 keep unmoved entries 0
         D[:, :, j] += wgt * (kernel_vectors(data, [tm] * R, runs) - V0)
         delays[j] |= tm.delay != tm0.delay
-    return D, delays
+        plays[j] |= tm.play != tm0.play
+    return D, delays, plays
 
 
 def run_groups(data: FitData, width: int) -> Iterator[list[int]]:
@@ -230,7 +234,7 @@ def exact_jacobian(
     R, k = data.n_runs, x.size
     nnu = nu.shape[1]
     tm0 = par.model(x)
-    D, delays = map_derivative(data, par, x, tm0)
+    D, delays, plays = map_derivative(data, par, x, tm0)
     moving = [d for d in range(D.shape[1]) if np.any(D[:, d, :] != 0.0)]
     starts = [START_DIRECTIONS[p] for p in data.exp.initial_state(state)]
     act = np.array(moving + starts, dtype=np.int64)
@@ -249,7 +253,8 @@ def exact_jacobian(
             cols[:, :k] = S[:, : len(moving)] @ D[q][moving]
             cols[:, k:] = S[:, len(moving) :]
             measured_columns(data, par, q, x, delay_of, y, cols, delays, rel_step,
-                             lambda xj, q=q: par.simulate(data, [par.model(xj)], [q], [nu[q]])[0])  # fmt: skip
+                             lambda xj, q=q: par.simulate(data, [par.model(xj)], [q], [nu[q]])[0],
+                             plays)  # fmt: skip
             rows = slice(offsets[q], offsets[q + 1])
             Jm[rows, :k] = cols[masks[q], :k]
             Jm[rows, k + q * nnu : k + (q + 1) * nnu] = cols[masks[q], k:]
@@ -271,16 +276,20 @@ def measured_columns(
     delays: np.ndarray,
     rel_step: float,
     resimulate: Callable[[np.ndarray], np.ndarray] | None = None,
+    plays: np.ndarray | None = None,
 ) -> None:
     """Run ``r``'s derivative columns ``cols`` of the simulated output ``y`` through the
-    measurement chain (in place), plus the delay's share of the ``delays`` columns.
+    measurement chain (in place), plus the delay's share of the ``delays`` columns and the
+    backlash's of the ``plays`` columns.
 
     ``delay_of(x)`` is the channel delay at the free parameters ``x``; a parameter that
     moves it gets the forward difference of the measured output in the delay alone (the
     step rule of :func:`difference_jacobian`, its floor from the free parameters): the
     output delayed again, or, for a driven run (whose model sees the delay in its motion:
     :func:`~hystdisc.fitting.simulate.delayed_motion`), ``resimulate(xj)``, the run's
-    measured output simulated at ``xj``.
+    measured output simulated at ``xj``. A parameter that moves a driven run's backlash
+    (``plays``) gets differences of ``resimulate`` too, with a step of
+    :data:`PLAY_STEP` of the run's motion amplitude.
     """
     t = data.t[r]
     window = data.run_filters()[r]
@@ -290,6 +299,12 @@ def measured_columns(
     if tau != 0.0 or window > 1:
         for q in range(cols.shape[1]):
             cols[:, q] = measured_output(t, cols[:, q], tau, window, step)
+    if driven and plays is not None and plays.any():
+        if resimulate is None:
+            raise ValueError("a driven run's backlash column needs resimulate")
+        h = PLAY_STEP * 0.5 * float(np.ptp(data.theta[r]))
+        for j in np.flatnonzero(plays & ~delays):
+            cols[:, j] += _motion_column(x, j, par, h, resimulate)
     if not delays.any():
         return
     y0 = measured_output(t, y, tau, window, step)
@@ -298,7 +313,8 @@ def measured_columns(
         if driven:  # central differences of runs simulated on the shifted motion
             if resimulate is None:
                 raise ValueError("a driven run's delay column needs resimulate")
-            cols[:, j] += _delay_column(x, j, par, float(np.median(np.diff(t))), resimulate)
+            h = DELAY_STEP * float(np.median(np.diff(t)))
+            cols[:, j] += _motion_column(x, j, par, h, resimulate)
             continue
         h = steps[j]
         xj = x.copy()
@@ -312,14 +328,18 @@ def measured_columns(
 #: integrator's tolerance needs a step well above its own error.
 DELAY_STEP = 1e-3
 
+#: The step of a driven run's backlash column, as a share of the run's motion amplitude
+#: (the play's output is piecewise linear in its width, like the shifted motion in the
+#: delay).
+PLAY_STEP = 1e-4
 
-def _delay_column(
-    x: np.ndarray, j: int, par: Parametrization, dt: float, resimulate: Callable
+
+def _motion_column(
+    x: np.ndarray, j: int, par: Parametrization, h: float, resimulate: Callable
 ) -> np.ndarray:
     """The derivative of a driven run's measured output along parameter ``j`` (which
-    moves the channel delay) by central differences of ``resimulate`` (one-sided at a
-    bound)."""
-    h = DELAY_STEP * dt
+    moves the motion the model is driven by: its channel delay or backlash) by central
+    differences of ``resimulate`` with step ``h`` (one-sided at a bound)."""
     up, down = x.copy(), x.copy()
     up[j] += h
     down[j] -= h

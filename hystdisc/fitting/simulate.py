@@ -23,6 +23,7 @@ from hystdisc.errors import HystdiscError
 from hystdisc.measurement.chain import delayed, measured_output
 from hystdisc.measurement.fitdata import FitData
 from hystdisc.models import TermModel
+from hystdisc.models.backlash import play_motion
 from hystdisc.models.compiled import N_BASE, base_coefficients
 from hystdisc.models.system import StateSpaceModel
 from hystdisc.simulation import driven_shared, mech_batch, simulate_system
@@ -55,12 +56,17 @@ def _split_vectors(vec: np.ndarray) -> tuple[np.ndarray, ...]:
 
 
 def _kernel_inputs(
-    data: FitData, runs: list[int], nuis: list[np.ndarray], delays: list[float] | None = None
+    data: FitData,
+    runs: list[int],
+    nuis: list[np.ndarray],
+    delays: list[float] | None = None,
+    plays: list[float] | None = None,
 ) -> dict:
     """The samples of the entries' runs, concatenated, and the step controls of a fit: the
     arguments of the batch kernels besides the model (and, driven, the entries' runs).
     ``delays``: each entry's channel delay, which a driven run's model sees as its motion
-    that much earlier (:func:`delayed_motion`)."""
+    that much earlier; ``plays``: each entry's backlash, through which a driven run's model
+    sees its motion (:func:`delayed_motion`)."""
     exp = data.exp
     steps = data.run_steps()
     how = data.integration
@@ -75,7 +81,11 @@ def _kernel_inputs(
     }
     if exp.motion_imposed:
         taus = delays if delays is not None else [0.0] * len(runs)
-        motion = [delayed_motion(data, r, tau) for r, tau in zip(runs, taus, strict=True)]
+        gaps = plays if plays is not None else [0.0] * len(runs)
+        motion = [
+            delayed_motion(data, r, tau, gap)
+            for r, tau, gap in zip(runs, taus, gaps, strict=True)
+        ]
         out["theta"] = np.concatenate([m[0] for m in motion])
         out["theta_dot"] = np.concatenate([m[1] for m in motion])
         return out
@@ -93,18 +103,24 @@ def _kernel_inputs(
     return out
 
 
-def delayed_motion(data: FitData, r: int, tau: float) -> tuple[np.ndarray, np.ndarray]:
-    """Run ``r``'s imposed motion and velocity ``tau`` s earlier: ``theta(t - tau)``.
+def delayed_motion(
+    data: FitData, r: int, tau: float, play: float = 0.0
+) -> tuple[np.ndarray, np.ndarray]:
+    """Run ``r``'s imposed motion and velocity as the damper saw them: ``tau`` s earlier,
+    ``theta(t - tau)``, and through a play of half-width ``play``.
 
     A driven test whose force channel lags the motion channel by ``tau`` records the
     force the damper made at ``t - tau``, the damper's answer to the motion then: the
     model is driven by the delayed motion, which is smooth, rather than its output
     delayed (a jump of the force, a Coulomb or yield reversal, falls between samples and
-    would be smeared by the interpolation of the output). ``tau = 0``: the run's own.
+    would be smeared by the interpolation of the output). A backlash between the actuator
+    and the damper (:func:`~hystdisc.models.backlash.play_motion`) acts on that motion.
+    ``tau = 0`` and ``play = 0``: the run's own.
     """
-    if tau == 0.0:
-        return data.theta[r], data.theta_dot[r]
-    return delayed(data.t[r], data.theta[r], tau), delayed(data.t[r], data.theta_dot[r], tau)
+    theta, theta_dot = data.theta[r], data.theta_dot[r]
+    if tau != 0.0:
+        theta, theta_dot = delayed(data.t[r], theta, tau), delayed(data.t[r], theta_dot, tau)
+    return play_motion(theta, theta_dot, play)
 
 
 def output_delay(data: FitData, tau: float) -> float:
@@ -132,14 +148,16 @@ def simulate_entries(
     vec = kernel_vectors(data, models, runs)
     coef, b, n, J = _split_vectors(vec)
     delays = [float(tm.delay) for tm in models]
-    k = _kernel_inputs(data, runs, nuis, delays)
+    plays = [float(tm.play) for tm in models]
+    k = _kernel_inputs(data, runs, nuis, delays, plays)
     t, offsets = k["t"], k["offsets"]
     work = np.zeros(ne, dtype=np.int64)
     with np.errstate(all="ignore"):
         if data.exp.motion_imposed:
-            # entries share z only on the same run seen with the same delay
-            which = {d: j for j, d in enumerate(dict.fromkeys(delays))}
-            keys = np.array([r + data.n_runs * which[d] for r, d in zip(runs, delays, strict=True)])
+            # entries share z only on the same run seen with the same delay and play
+            seen = list(zip(delays, plays, strict=True))
+            which = {d: j for j, d in enumerate(dict.fromkeys(seen))}
+            keys = np.array([r + data.n_runs * which[d] for r, d in zip(runs, seen, strict=True)])
             out, _, status = driven_shared(
                 coef,
                 b,
@@ -212,7 +230,9 @@ def simulate_sensitivities(
     """
     vec = kernel_vectors(data, [model] * len(runs), runs)
     coef, b, n, J = _split_vectors(vec)
-    k = _kernel_inputs(data, runs, nuis, [float(model.delay)] * len(runs))
+    k = _kernel_inputs(
+        data, runs, nuis, [float(model.delay)] * len(runs), [float(model.play)] * len(runs)
+    )
     t, offsets = k["t"], k["offsets"]
     with np.errstate(all="ignore"):
         if data.exp.motion_imposed:
@@ -231,11 +251,12 @@ def simulate_sensitivities(
 
 
 def system_inputs(
-    data: FitData, r: int, model: StateSpaceModel, tau: float = 0.0
+    data: FitData, r: int, model: StateSpaceModel, tau: float = 0.0, play: float = 0.0
 ) -> dict[str, np.ndarray]:
     """Run ``r``'s exogenous signals by the names the model asks for (a driven run's
-    motion delayed by the channel delay ``tau``: :func:`delayed_motion`)."""
-    theta, theta_dot = delayed_motion(data, r, tau) if data.exp.motion_imposed else (
+    motion delayed by the channel delay ``tau`` and through a backlash ``play``:
+    :func:`delayed_motion`)."""
+    theta, theta_dot = delayed_motion(data, r, tau, play) if data.exp.motion_imposed else (
         data.theta[r], data.theta_dot[r]
     )  # fmt: skip
     have = {"theta": theta, "theta_dot": theta_dot, "u": data.u[r]}
@@ -289,7 +310,7 @@ def simulate_systems(
                 x0,
                 values,
                 current=float(data.currents[r]),
-                inputs=system_inputs(data, r, model, tau),
+                inputs=system_inputs(data, r, model, tau, model.input_play(values)),
                 rtol=how.rtol,
                 atol=how.atol,
                 max_steps_per_sample=how.max_steps * steps[r],

@@ -135,6 +135,13 @@ def _lockstep_run(data, r, nominal, perturbed, nu, nu_steps) -> np.ndarray | Non
             system.inputs,
         ):
             return None
+    play = system.input_play(values)
+    if any(s.input_play(vals) != play for s, vals in perturbed):
+        return None  # a copy sees another motion (its backlash): separate runs
+    tau = system.output_delay(values)
+    driven = data.exp.motion_imposed
+    if driven and any(s.output_delay(vals) != tau for s, vals in perturbed):
+        return None  # a driven copy sees its delay in its motion: separate runs
     current = float(data.currents[r])
     p0 = system.run_parameters(values, current)
     x0 = _sim.system_start(data, system, nu)
@@ -153,13 +160,15 @@ def _lockstep_run(data, r, nominal, perturbed, nu, nu_steps) -> np.ndarray | Non
         t,
         np.array(X0),
         np.array(P),
-        _sim.system_inputs(data, r, system),
+        _sim.system_inputs(data, r, system, tau if driven else 0.0, play),
         rtol=how.rtol,
         atol=how.atol,
         max_steps_per_sample=how.max_steps * data.run_steps()[r],
     )
     if Y is None or not np.all(np.isfinite(Y[0])):
         return None
+    if driven:  # the delay is in the motion (as simulate_systems has it), not the output
+        delays = [0.0] * len(delays)
     with np.errstate(invalid="ignore", over="ignore"):
         move = np.abs(Y[1:] - Y[0]).max(axis=1) if len(Y) > 1 else np.zeros(0)
     if not np.all(move <= LOCKSTEP_MAX_MOVE * (np.ptp(Y[0]) + 1e-300)):

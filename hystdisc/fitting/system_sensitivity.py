@@ -57,17 +57,21 @@ def packed_derivative(
         Shape ``(runs, len(p), parameters)``.
     delays : ndarray of bool
         The parameters that move the output's delay.
+    plays : ndarray of bool
+        The parameters that move the backlash of a driven run's motion.
     """
     P = _packed(data, par, x)
     D = np.zeros((*P.shape, x.size))
     delays = np.zeros(x.size, dtype=bool)
+    plays = np.zeros(x.size, dtype=bool)
     system, values = par.model(x)
-    tau0 = system.output_delay(values)
+    tau0, play0 = system.output_delay(values), system.input_play(values)
     for j, xj, wgt in map_stencil(x, par):
         D[:, :, j] += wgt * (_packed(data, par, xj) - P)
         sj, vj = par.model(xj)
         delays[j] |= sj.output_delay(vj) != tau0
-    return P, D, delays
+        plays[j] |= sj.input_play(vj) != play0
+    return P, D, delays, plays
 
 
 def system_exact_jacobian(
@@ -87,7 +91,7 @@ def system_exact_jacobian(
     """
     R, k, nnu = data.n_runs, x.size, nu.shape[1]
     system, values0 = par.model(x)
-    P, D, delays = packed_derivative(data, par, x)
+    P, D, delays, plays = packed_derivative(data, par, x)
     moving = [d for d in range(P.shape[1]) if np.any(D[:, d, :] != 0.0)]
     names = data.exp.initial_state(has_z="z" in system.states)
     # each initial-state parameter's state (theta0 -> theta), or none
@@ -108,7 +112,9 @@ def system_exact_jacobian(
             P[r],
             moving,
             starts,
-            inputs=_sim.system_inputs(data, r, system, system.output_delay(values0)),
+            inputs=_sim.system_inputs(
+                data, r, system, system.output_delay(values0), system.input_play(values0)
+            ),
             rtol=how.rtol,
             atol=how.atol,
             max_steps_per_sample=how.max_steps * steps[r],
@@ -124,7 +130,8 @@ def system_exact_jacobian(
                 cols[:, k + i] = dY[:, c]
                 c += 1
         measured_columns(data, par, r, x, delay_of, y, cols, delays, rel_step,
-                         lambda xj: par.simulate(data, [par.model(xj)], [r], [nu[r]])[0])  # fmt: skip
+                         lambda xj: par.simulate(data, [par.model(xj)], [r], [nu[r]])[0],
+                         plays)  # fmt: skip
         return cols
 
     done = map_entries(one, list(range(R)))

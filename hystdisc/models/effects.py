@@ -123,6 +123,10 @@ class Effect:
         The parameter that delays the recorded output behind the motion or input (s),
         written into the term model's ``delay`` (:meth:`apply`) and into a state-space
         model's output delay; empty: none.
+    play_param : str
+        The parameter that is the half-width of a play between a driven test's measured
+        motion and the damper (:mod:`hystdisc.models.backlash`), written into the term
+        model's ``play`` (:meth:`apply`); empty: none.
     """
 
     name: str
@@ -160,6 +164,7 @@ class Effect:
     roles: tuple[str, ...] = ()
     shift_param: str = ""
     delay_param: str = ""
+    play_param: str = ""
     scaled: tuple[tuple[str, str, str], ...] = ()
 
     def has_role(self, role: str) -> bool:
@@ -197,6 +202,8 @@ class Effect:
             setattr(tm, attr, float(values[name]))
         if self.delay_param:
             tm.delay = float(values[self.delay_param])
+        if self.play_param:
+            tm.play = float(values[self.play_param])
         return tm
 
     def off_values(self) -> dict[str, float]:

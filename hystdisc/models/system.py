@@ -58,6 +58,13 @@ def delay_params() -> tuple[str, ...]:
     return tuple(p for p in found if p)
 
 
+def play_params() -> tuple[str, ...]:
+    """The parameters of the registered effects that put a play between a driven test's
+    measured motion and the damper (:attr:`~hystdisc.models.effects.Effect.play_param`)."""
+    found = (get_effect(n).play_param for n in effect_names())
+    return tuple(p for p in found if p)
+
+
 class StateSpaceModel:
     """Base of every model the simulator integrates (see the module docstring).
 
@@ -144,6 +151,16 @@ class StateSpaceModel:
                 return float(values[name])
         terms = getattr(self, "terms", None)
         return float(terms.delay) if terms is not None else 0.0
+
+    def input_play(self, values: Mapping[str, float]) -> float:
+        """Half-width of a play between a driven test's measured motion and the model (the
+        :mod:`~hystdisc.models.backlash` effect): a play parameter among ``values``, else
+        the play of the term model the system is built around, else 0."""
+        for name in play_params():
+            if name in values:
+                return float(values[name])
+        terms = getattr(self, "terms", None)
+        return float(terms.play) if terms is not None else 0.0
 
     def equations(self) -> str:  # pragma: no cover - documented by subclasses
         """The model's equations, one per line."""

@@ -188,6 +188,10 @@ class TermModel:
         ``i0 tanh(i / i0)`` (:func:`effective_current`) instead of ``i``; its coefficient
         stays the slope at 0 A. Empty: every law linear (a quadratic law is an ``i^2``
         term).
+    play : float
+        Half-width of a play between a driven test's measured motion and the damper (the
+        ``backlash`` effect, :mod:`hystdisc.models.backlash`): the model is driven by the
+        play operator's output; 0 for none.
 
     Examples
     --------
@@ -205,6 +209,7 @@ class TermModel:
     m: float = SHEAR_M0
     delay: float = 0.0
     saturation: dict[str, float] = field(default_factory=dict)
+    play: float = 0.0
 
     def __post_init__(self) -> None:
         for name in self.torque:
@@ -224,6 +229,7 @@ class TermModel:
         self.J = float(self.J)
         self.m = float(self.m)
         self.delay = float(self.delay)
+        self.play = float(self.play)
         self.saturation = {k: float(v) for k, v in self.saturation.items()}
         for group, i0 in self.saturation.items():
             if group not in LAW_GROUPS:
@@ -354,7 +360,7 @@ class TermModel:
             hyst[k] = hyst.get(k, 0.0) + v
         m = self.m if SHEAR_TERM in self.torque else other.m
         sat = {**other.saturation, **self.saturation}
-        return TermModel(torque, hyst, self.n, self.J, m, self.delay, sat)
+        return TermModel(torque, hyst, self.n, self.J, m, self.delay, sat, self.play or other.play)
 
     def equations(self, precision: int = 4) -> str:
         """pysindy-style two-line print of the model (a third line for a channel delay).
@@ -388,6 +394,8 @@ class TermModel:
         out = torque + "\n" + rate
         if self.delay:
             out += f"\nmeasured(t) = model(t - {self.delay:.{precision}g} s)"
+        if self.play:
+            out += f"\ndamper motion = play(theta, {self.play:.{precision}g})"
         return out
 
 

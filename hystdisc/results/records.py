@@ -40,6 +40,8 @@ def term_model_to_dict(tm: TermModel) -> dict:
         out["delay"] = tm.delay  # the channel delay [s] (absent: 0, as older records)
     if tm.saturation:
         out["saturation"] = dict(tm.saturation)  # saturating current laws (absent: linear)
+    if tm.play:
+        out["play"] = tm.play  # the backlash half-width (absent: 0, as older records)
     return out
 
 
@@ -53,6 +55,7 @@ def term_model_from_dict(d: Any) -> TermModel:
         float(d.get("m", SHEAR_M0)),
         float(d.get("delay", 0.0) or 0.0),
         {k: float(v) for k, v in (d.get("saturation") or {}).items()},
+        float(d.get("play", 0.0) or 0.0),
     )
 
 
@@ -77,7 +80,9 @@ class TermModelRecord(Record):
         Keys this version does not know (kept on a round trip); ``m``, the exponent of
         the shear-thinning term, when the model has that term; ``saturation`` (schema 5),
         the saturation current ``i0`` of each group of current terms whose law saturates
-        (:attr:`~hystdisc.models.TermModel.saturation`), when the model has one.
+        (:attr:`~hystdisc.models.TermModel.saturation`), when the model has one;
+        ``play``, the half-width of a backlash between the measured motion and the damper
+        (:attr:`~hystdisc.models.TermModel.play`), when the model has one.
     """
 
     torque: dict[str, float] = field(default_factory=dict)
@@ -96,7 +101,7 @@ class TermModelRecord(Record):
     def to_term_model(self) -> TermModel:
         """The :class:`~hystdisc.models.TermModel` (ValueError/TypeError when malformed)."""
         tm = term_model_from_dict(self)
-        values = [*tm.torque.values(), *tm.hysteresis.values(), tm.n, tm.J, tm.m, tm.delay]
+        values = [*tm.torque.values(), *tm.hysteresis.values(), tm.n, tm.J, tm.m, tm.delay, tm.play]
         values += list(tm.saturation.values())
         if not all(math.isfinite(v) for v in values):
             raise ValueError("a coefficient is not finite")

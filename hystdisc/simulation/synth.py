@@ -59,6 +59,7 @@ from hystdisc import registry
 from hystdisc.data import Dataset, Run, write_csv
 from hystdisc.errors import HystdiscError
 from hystdisc.models import Model, TermModel
+from hystdisc.models.backlash import play_motion
 from hystdisc.simulation import simulate_driven_runs, simulate_mech, simulate_system
 from hystdisc.simulation.prefilter import apply_prefilter, check_prefilter
 from hystdisc.simulation.synth_checks import (
@@ -334,6 +335,10 @@ def generate(
             wshift = [a * om * np.cos(om * ts) for a, om in mot]
         else:
             shifted, wshift = ths, ws
+        gap = _play(mdl, exp)
+        if gap:  # a backlash between the actuator and the damper
+            seen = [play_motion(th, w, gap) for th, w in zip(shifted, wshift, strict=True)]
+            shifted, wshift = [s for s, _ in seen], [w for _, w in seen]
         structural = None if _is_system(mdl) else _structural(mdl, exp)
         if _is_system(mdl) or structural is not None:
             if structural is not None:
@@ -417,6 +422,16 @@ def _add_spikes(signals: list[np.ndarray], count: int, size: float, seed: int) -
     for f, sign in zip(flat, signs, strict=True):
         k = int(np.searchsorted(bounds, f, side="right"))
         signals[k][f - (bounds[k] - sizes[k])] += sign * size
+
+
+def _play(mdl: Model | TermModel, exp: str) -> float:
+    """The backlash half-width of ``mdl`` (0 without one)."""
+    if isinstance(mdl, TermModel):
+        return float(mdl.play)
+    if _is_system(mdl):
+        sys, values = mdl.system(exp)
+        return sys.input_play(values)
+    return float(mdl.to_terms().play)
 
 
 def _structural(mdl: Model | TermModel, exp: str) -> str | None:
