@@ -88,7 +88,13 @@ class Say:
         return (Say, (None, True))  # the callback stays here: the messages come back
 
     def take(self) -> list[str]:
-        """The messages kept since the last call (none unless ``keep``)."""
+        """The messages kept since the last call, and forget them.
+
+        Returns
+        -------
+        list of str
+            The messages, in the order said (empty unless ``keep``).
+        """
         with _SAY_LOCK:
             out, self.kept = list(self.kept or []), ([] if self.kept is not None else None)
             return out
@@ -163,7 +169,28 @@ class ClusterTasks:
         return (ThreadTasks, (self.n_jobs,))  # on a worker: its own threads
 
     def map(self, fn: Callable, items: Sequence[Any], serial: bool = False) -> list:
-        """``fn`` over ``items`` on the workers, in order (``serial``: in turn, here)."""
+        """``fn`` over ``items`` on the workers (see the module docstring).
+
+        Parameters
+        ----------
+        fn : callable
+            One task: ``fn(item)``; pickled with cloudpickle, with what it closes over.
+        items : sequence
+            The items (pickled with ``fn``).
+        serial : bool
+            Run the tasks in turn here instead (work that must not run beside itself).
+
+        Returns
+        -------
+        list
+            ``fn(item)`` for each item, in order.
+
+        Raises
+        ------
+        Exception
+            The first exception a task raised, in task order, once every task has ended
+            (the others' failures and messages replayed).
+        """
         items = list(items)
         if serial or not items:
             return map_tasks(fn, items, self.n_jobs, serial)
@@ -199,9 +226,30 @@ class ClusterTasks:
         self, before: Callable, before_items: Sequence[Any], after: Callable,
         after_items: Sequence[Any], serial_before: bool = False,
     ) -> tuple[list, list]:  # fmt: skip
-        """``before`` over ``before_items`` on the workers (``serial_before``: in turn,
-        here), then ``after`` over ``after_items`` on the workers, every ``before``
-        result at hand."""
+        """``before`` over ``before_items``, then ``after`` over ``after_items``, on the
+        workers.
+
+        Unlike :func:`~hystdisc.simulation.parallel.map_after` on threads, the ``after``
+        tasks start once every ``before`` task has ended (the same results).
+
+        Parameters
+        ----------
+        before : callable
+            ``before(item)``.
+        before_items : sequence
+            Its items.
+        after : callable
+            ``after(item, ready)``, ``ready(k)`` returning the ``k``-th ``before`` result.
+        after_items : sequence
+            Its items.
+        serial_before : bool
+            Run the ``before`` tasks in turn here (numpy's global generator).
+
+        Returns
+        -------
+        tuple of list
+            The ``before`` results and the ``after`` results, each in order.
+        """
         firsts = self.map(before, before_items, serial=serial_before)
         return firsts, self.map(functools.partial(_after, after, firsts), after_items)
 
