@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import sys
 from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 from sklearn.base import BaseEstimator
@@ -84,6 +85,8 @@ class Discovery(BaseEstimator):
         simulations of a state-space model's batch (:mod:`hystdisc.simulation.parallel`);
         default: the usable CPUs, at most
         :data:`~hystdisc.simulation.parallel.MAX_THREADS`. The results do not depend on it.
+        With ``scheduler``, the threads of each task's batches on its worker (and of the
+        work done here).
     staged : bool
         After the selection, the seed's flowchart (:mod:`hystdisc.selection.staged`): the
         selected family fitted at each current level, each current law chosen by leaving
@@ -98,6 +101,19 @@ class Discovery(BaseEstimator):
         How the output-error fits compute their Jacobian: the simulators' exact
         sensitivities where they have them, else forward differences (the default); see
         :data:`~hystdisc.fitting.jacobian.JACOBIAN_MODES` for the others.
+    scheduler : str or distributed.Client, optional
+        Run this discovery's independent tasks (stage-1 shapes, every family's first fit,
+        its starts and held-out folds, the families refitted with a measurement effect or
+        with the loop's effects for the comparison again) on a Dask cluster
+        instead of this process's threads: a scheduler's address (``tcp://host:8786``,
+        connected at :meth:`fit` and closed after it) or a connected
+        ``distributed.Client`` (used as given). The workers need this version of hystdisc
+        (``pip install hystdisc[dask]``), not the data: each task carries its own. The
+        results are those of the threaded run (:mod:`hystdisc.pipeline.tasks`); the
+        stages themselves (and the closing loop's rounds) run here. An address keeps the
+        estimator clonable and picklable (a ``Client`` can be neither copied nor pickled).
+        A missing dask, an unreachable address and a worker without this hystdisc are
+        one-line :class:`~hystdisc.errors.HystdiscError` (:mod:`hystdisc.cluster`).
 
     Attributes
     ----------
@@ -219,6 +235,7 @@ class Discovery(BaseEstimator):
         staged: bool = False,
         n_starts: int = 4,
         jacobian: str = "exact",
+        scheduler: Any = None,
     ) -> None:
         self.experiment = experiment
         self.families = families
@@ -238,6 +255,7 @@ class Discovery(BaseEstimator):
         self.n_starts = n_starts
         self.staged = staged
         self.jacobian = jacobian
+        self.scheduler = scheduler
 
     # -- public API
     def fit(
@@ -259,10 +277,16 @@ class Discovery(BaseEstimator):
         -------
         Discovery
             ``self``, fitted.
+
+        Raises
+        ------
+        HystdiscError
+            Bad data, or a ``scheduler`` that cannot be used (dask missing, no scheduler
+            answering at the address, a worker without this version of hystdisc).
         """
         if progress is None and self.verbose > 0:
             progress = stderr_printer()
-        state = run(dataset, Options.of(self.get_params()), progress)
+        state = run(dataset, Options.of(self.get_params()), progress, self.scheduler)
         for name, value in state.fitted().items():
             setattr(self, name + "_", value)
         self.results_ = build_results(state)

@@ -22,6 +22,9 @@ True
 2
 >>> f.items()
 {'spencer': 'the computation failed (ZeroDivisionError: division by zero)'}
+>>> import pickle
+>>> pickle.loads(pickle.dumps(f)).items() == f.items()
+True
 """
 
 from __future__ import annotations
@@ -59,12 +62,21 @@ def reason_of(exc: BaseException) -> str:
 class Failures:
     """The failed tasks of one discovery: name -> reason, in the order they failed.
 
-    Thread-safe: tasks run on several threads record into one instance.
+    Thread-safe: tasks run on several threads record into one instance. It pickles as its
+    record (a task sent to another process takes a copy; what it records there is handed
+    back by the task's runner, :mod:`hystdisc.pipeline.tasks`).
     """
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
         self._items: dict[str, str] = {}
+
+    def __getstate__(self) -> dict[str, dict[str, str]]:
+        return {"items": self.items()}  # a lock does not pickle: a copy gets its own
+
+    def __setstate__(self, state: dict[str, dict[str, str]]) -> None:
+        self.__init__()
+        self._items.update(state["items"])
 
     def record(self, name: str, reason: str) -> None:
         """Record that the task ``name`` failed for ``reason`` (the first reason stays)."""

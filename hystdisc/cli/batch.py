@@ -17,9 +17,11 @@ Backends
   are mapped on the cluster's workers, which need ``hystdisc`` installed and the data
   files readable at the same paths (the files are read by the workers). Install the
   optional extra with ``pip install hystdisc[dask]``. A scheduler that does not answer
-  within :data:`CONNECT_TIMEOUT` seconds, a malformed address, and a connected worker
-  that cannot import this version of ``hystdisc`` are one-line errors before any work
-  is sent; Ctrl-C cancels the datasets still queued or running on the cluster.
+  within :data:`~hystdisc.cluster.CONNECT_TIMEOUT` seconds, a malformed address, and a
+  connected worker that cannot import this version of ``hystdisc`` are one-line errors
+  before any work is sent (:mod:`hystdisc.cluster`); Ctrl-C cancels the datasets still
+  queued or running on the cluster. (To run the tasks of *one* discovery on a cluster
+  instead, see :mod:`hystdisc.pipeline.tasks`.)
 
 A dataset that fails with a :class:`~hystdisc.errors.HystdiscError` (bad input) does not
 stop the others: its one-line message is returned in :attr:`BatchItem.error`.
@@ -42,20 +44,19 @@ from __future__ import annotations
 
 import contextlib
 import os
-import re
 import warnings
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from hystdisc.cluster import CONNECT_TIMEOUT, DASK_MISSING, check_workers, connect
 from hystdisc.errors import HystdiscError, HystdiscWarning
 
-#: One-line error when ``--scheduler`` is used without dask.distributed installed.
-DASK_MISSING = "--scheduler needs dask.distributed; fix: pip install hystdisc[dask]"
-
-#: Seconds to wait for a Dask scheduler to answer before giving up with a one-line error.
-CONNECT_TIMEOUT = 5.0
+__all__ = [
+    "CONNECT_TIMEOUT", "DASK_MISSING", "BatchItem", "discover_many", "discover_one",
+    "output_paths",
+]  # fmt: skip
 
 
 @dataclass
@@ -128,90 +129,6 @@ def discover_one(
     return item
 
 
-def _check_address(address: str) -> None:
-    """Raise ValueError, with dask's reason, if ``address`` cannot name a Dask scheduler."""
-    from distributed.comm.addressing import get_address_host_port, parse_address
-    from distributed.comm.registry import get_backend
-
-    scheme, _ = parse_address(address)
-    get_backend(scheme)  # unknown scheme -> ValueError listing the known ones
-    if scheme != "inproc":  # in-process addresses have no host and port
-        _, port = get_address_host_port(address)
-        if not 0 < int(port) < 65536:
-            raise ValueError(f"port {port} is not between 1 and 65535")
-
-
-def _client(scheduler: Any):
-    """A dask.distributed Client for an address (or the Client given); and whether we own it.
-
-    The address is checked before a Client is made (a Client whose constructor fails on a
-    malformed address is left half-open, and its finaliser prints a traceback after a
-    40 s wait), and the connection waits at most :data:`CONNECT_TIMEOUT` seconds.
-    """
-    try:
-        from distributed import Client
-    except ImportError:
-        raise HystdiscError(DASK_MISSING) from None
-    if isinstance(scheduler, Client):
-        return scheduler, False
-    address = str(scheduler)
-    try:
-        _check_address(address)
-    except ValueError as exc:
-        raise HystdiscError(
-            f"--scheduler {address}: not a Dask scheduler address ({exc}); fix: give the "
-            "address the scheduler prints, e.g. tcp://10.0.0.5:8786"
-        ) from None
-    try:
-        return Client(address, timeout=CONNECT_TIMEOUT, set_as_default=False), True
-    except (OSError, TimeoutError) as exc:
-        msg = " ".join(str(exc).split())
-        why = "" if not msg or msg.startswith("Timed out") else f" ({msg})"
-        raise HystdiscError(
-            f"--scheduler {address}: cannot connect: no Dask scheduler answered within "
-            f"{CONNECT_TIMEOUT:g} s{why}; fix: start one with 'dask scheduler' (and workers with 'dask worker "
-            "ADDRESS'), or check the address"
-        ) from None
-
-
-def _worker_version() -> str:
-    """hystdisc's version, run on a Dask worker (unpickling this function imports hystdisc)."""
-    from hystdisc import __version__
-
-    return __version__
-
-
-def _check_workers(client: Any, say: Callable[[str], None]) -> None:
-    """Fail in one line if a connected Dask worker lacks this version of hystdisc.
-
-    A worker that cannot import hystdisc cannot even read a task, and the batch would wait
-    for ever; a worker with another version would write other ``results.json`` files.
-    Workers that join later are not checked.
-    """
-    from hystdisc import __version__
-
-    address = client.scheduler.address
-    found = client.run(_worker_version, on_error="return")
-    if not found:
-        say(f"waiting for Dask workers to join the scheduler at {address}")
-    for worker, version in sorted(found.items()):
-        if isinstance(version, BaseException):
-            why = " ".join(str(version).split()) or type(version).__name__
-            # errors of client.run come back as Exception('Name("message")')
-            why = re.sub(r"^(\w+)\((['\"])(.*)\2\)$", r"\1: \3", why)
-            raise HystdiscError(
-                f"--scheduler {address}: the Dask worker {worker} cannot import hystdisc "
-                f"({why}); fix: pip install hystdisc=={__version__} on every worker and "
-                "restart the workers"
-            )
-        if version != __version__:
-            raise HystdiscError(
-                f"--scheduler {address}: the Dask worker {worker} has hystdisc {version}, "
-                f"this machine {__version__}, so its results would differ; fix: pip install "
-                f"hystdisc=={__version__} on every worker and restart the workers"
-            )
-
-
 def discover_many(
     sources: Sequence[str | os.PathLike[str]],
     *,
@@ -248,8 +165,9 @@ def discover_many(
     ------
     HystdiscError
         ``jobs`` is 0 or below -1, dask.distributed is missing for ``scheduler``, the
-        address is malformed or no scheduler answers there within :data:`CONNECT_TIMEOUT`
-        seconds, or a connected worker lacks this version of hystdisc.
+        address is malformed or no scheduler answers there within
+        :data:`~hystdisc.cluster.CONNECT_TIMEOUT` seconds, or a connected worker lacks this
+        version of hystdisc.
     """
     sources = [str(s) for s in sources]
     if not isinstance(jobs, int) or jobs == 0 or jobs < -1:
@@ -267,12 +185,12 @@ def discover_many(
 
     items: list[BatchItem | None] = [None] * n
     if scheduler is not None:
-        client, own = _client(scheduler)
+        client, own = connect(scheduler)
         futures: list[Any] = []
         try:
             from distributed import as_completed
 
-            _check_workers(client, say)
+            check_workers(client, say)
             futures = client.map(
                 discover_one,
                 sources,

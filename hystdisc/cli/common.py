@@ -256,7 +256,14 @@ def fit_discovery(disc: Any, data: Dataset, progress: Callable[[str], None] | No
 
 
 def discover(
-    args: argparse.Namespace, data: Dataset, progress: Callable[[str], None] | None = None
+    args: argparse.Namespace,
+    data: Dataset,
+    progress: Callable[[str], None] | None = None,
+    scheduler: str | None = None,
 ) -> Any:
-    """Make the estimator from the command-line options and fit it to ``data``."""
-    return fit_discovery(make_discovery(discovery_options(args)), data, progress)
+    """Make the estimator from the command-line options and fit it to ``data`` (its
+    independent fits on the Dask cluster at ``scheduler`` when given)."""
+    options = discovery_options(args)
+    if scheduler is not None:
+        options["scheduler"] = scheduler
+    return fit_discovery(make_discovery(options), data, progress)

@@ -7,6 +7,11 @@ Examples::
     hystdisc discover ../shared/data/utfsm_mr_damper --rig rig.toml
     hystdisc discover rig1.csv rig2.csv rig3.csv --each --jobs 2 --out results/
     hystdisc discover data/*.csv --each --scheduler tcp://10.0.0.5:8786 --out results/
+    hystdisc discover data_synth/bouc-wen.csv --scheduler tcp://10.0.0.5:8786
+
+With ``--each``, ``--scheduler`` runs whole datasets on the cluster
+(:mod:`hystdisc.cli.batch`); without it, the independent tasks of the one discovery
+(:mod:`hystdisc.pipeline.tasks`).
 """
 
 from __future__ import annotations
@@ -52,7 +57,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "many datasets",
         "By default all FILEs form ONE dataset. With --each every FILE (or folder) is a "
         "dataset of its own, written to DIR/<stem>.results.json; --jobs and --scheduler "
-        "run those datasets in parallel, with results byte-identical to the serial run.",
+        "run those datasets in parallel, with results byte-identical to the serial run. "
+        "Without --each, --scheduler runs the independent fits of the one dataset on the "
+        "cluster (the same results).",
     )
     g.add_argument(
         "--each",
@@ -70,9 +77,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument(
         "--scheduler",
         metavar="ADDRESS",
-        help="with --each: run the datasets on a Dask cluster (dask.distributed scheduler "
-        "address, e.g. tcp://host:8786; needs pip install hystdisc[dask], hystdisc on the "
-        "workers and the files readable there at the same paths)",
+        help="run on a Dask cluster (dask.distributed scheduler address, e.g. "
+        "tcp://host:8786; needs pip install hystdisc[dask] and hystdisc on the workers): "
+        "with --each the datasets (the files readable on the workers at the same paths), "
+        "without it the independent fits of the one dataset (families, starts, held-out "
+        "folds, effect refits; the data travel with them)",
     )
 
 
@@ -80,11 +89,10 @@ def run(args: argparse.Namespace) -> int:
     """Execute ``hystdisc discover``."""
     if args.each:
         return run_each(args)
-    if args.jobs != 1 or args.scheduler:
-        flag = "--scheduler" if args.scheduler else "--jobs"
+    if args.jobs != 1:
         raise HystdiscError(
-            f"{flag} runs several datasets in parallel, but without --each all FILEs form one "
-            f"dataset; fix: add --each (one dataset per FILE) or drop {flag}"
+            "--jobs runs several datasets in parallel, but without --each all FILEs form one "
+            "dataset; fix: add --each (one dataset per FILE) or drop --jobs"
         )
     json_path = Path(args.json) if args.json else Path(args.out) / "results.json"
     from hystdisc.report.source import report_data_path
@@ -99,7 +107,7 @@ def run(args: argparse.Namespace) -> int:
 
         check_report_path(args.report, args.force)
     data = load_data(args, args.files)
-    disc = discover(args, data, progress_printer(args.quiet))
+    disc = discover(args, data, progress_printer(args.quiet), scheduler=args.scheduler)
     res = disc.results_
     json_path.parent.mkdir(parents=True, exist_ok=True)
     from hystdisc.report import report_data, report_data_path

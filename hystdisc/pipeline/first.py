@@ -2,7 +2,8 @@
 output-error fit from it.
 
 A family's first fit starts as soon as its own shape's stage-1 search has ended, on the
-threads the other shapes leave free (:func:`~hystdisc.simulation.parallel.map_after`).
+threads the other shapes leave free (:func:`~hystdisc.simulation.parallel.map_after`; on a
+Dask cluster, once every shape's has: :class:`~hystdisc.pipeline.tasks.ClusterTasks`).
 The discovered structure is fitted too when no family has it. A delay between the recorded
 channels that stage 1 sees (:mod:`hystdisc.discovery.delay`) enters every family before
 they are compared: compared without it, the family that best absorbs the lag would win.
@@ -19,7 +20,6 @@ from hystdisc.models import EFFECTS, FAMILIES
 from hystdisc.pipeline.families import first_fit
 from hystdisc.pipeline.state import State
 from hystdisc.registry import get_experiment
-from hystdisc.simulation.parallel import map_tasks_after
 
 
 def _delay_effect():
@@ -74,8 +74,8 @@ def first_fits(state: State) -> None:
         return first_fit(state, name, None if own is None else own.s)
 
     # the ensemble draws from numpy's global generator: one shape after the other
-    fits, firsts = map_tasks_after(
-        shape_fit, shapes, family_fit, list(range(len(fams) + 1)), opts.n_jobs, opts.ensemble
+    fits, firsts = state.map_after(
+        shape_fit, shapes, family_fit, list(range(len(fams) + 1)), opts.ensemble
     )
     state.stage1 = {s: f for s, f in zip(shapes, fits, strict=True) if f is not None}
     if not state.stage1:

@@ -17,18 +17,19 @@ stage                  what it does
 =====================  ===================================================================
 
 :func:`run` runs them in order and returns the :class:`~hystdisc.pipeline.state.State`;
-any task inside a stage that fails is recorded in ``state.failures`` and the run goes on
-(:mod:`hystdisc.faults`); :func:`~hystdisc.pipeline.record.build_results` makes
-``results.json`` of the state.
+the independent tasks inside a stage run on the discovery's threads, or on a Dask cluster
+(``scheduler``: :mod:`hystdisc.pipeline.tasks`). Any task inside a stage that fails is
+recorded in ``state.failures`` and the run goes on (:mod:`hystdisc.faults`);
+:func:`~hystdisc.pipeline.record.build_results` makes ``results.json`` of the state.
 """
 
 from __future__ import annotations
 
 import sys
-import threading
 import time
 import warnings
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 from threadpoolctl import threadpool_limits
@@ -43,9 +44,8 @@ from hystdisc.pipeline.options import Options
 from hystdisc.pipeline.prepare import prepare
 from hystdisc.pipeline.starts import global_fits, system_fits
 from hystdisc.pipeline.state import State
+from hystdisc.pipeline.tasks import Say, ThreadTasks, task_engine
 from hystdisc.simulation.parallel import limit_threads
-
-_SAY_LOCK = threading.Lock()
 
 
 def stderr_printer() -> Callable[[str], None]:
@@ -54,18 +54,6 @@ def stderr_printer() -> Callable[[str], None]:
 
     def say(msg: str) -> None:
         print(f"[{time.perf_counter() - t0:6.1f} s] {msg}", file=sys.stderr, flush=True)
-
-    return say
-
-
-def _serialized(progress: Callable[[str], None] | None) -> Callable[[str], None]:
-    """``progress`` called by one thread at a time (a no-op when None)."""
-    if progress is None:
-        return lambda msg: None
-
-    def say(msg: str) -> None:
-        with _SAY_LOCK:
-            progress(msg)
 
     return say
 
@@ -84,7 +72,12 @@ def fit_family(dataset: Dataset, options: Options, family: str) -> OEFit | None:
     return state.family_fits[state.family]
 
 
-def run(dataset: Dataset, options: Options, progress: Callable[[str], None] | None = None) -> State:
+def run(
+    dataset: Dataset,
+    options: Options,
+    progress: Callable[[str], None] | None = None,
+    scheduler: Any = None,
+) -> State:
     """Every stage in turn on ``dataset`` (see the module docstring).
 
     Parameters
@@ -95,21 +88,40 @@ def run(dataset: Dataset, options: Options, progress: Callable[[str], None] | No
         What to do.
     progress : callable, optional
         Receives short progress messages.
+    scheduler : str or distributed.Client, optional
+        Run the independent tasks on this Dask cluster (its scheduler's address or a
+        client) instead of this process's threads (:mod:`hystdisc.pipeline.tasks`; the
+        same results).
 
     Returns
     -------
     State
         Filled by the stages (``failed``: what failed and was dropped).
+
+    Raises
+    ------
+    HystdiscError
+        Bad data, or a ``scheduler`` that cannot be used
+        (:func:`~hystdisc.pipeline.tasks.task_engine`).
     """
-    state = State(dataset, options, _serialized(progress))
+    state = State(dataset, options, Say(progress))
     # small dense algebra on tall matrices: extra BLAS threads only add overhead; the
     # simulations of a batch run side by side on up to n_jobs threads
-    with np.errstate(all="ignore"), threadpool_limits(limits=1), limit_threads(options.n_jobs):
-        prepare(state)
-        first_fits(state)
-        global_fits(state)
-        system_fits(state)
-        choose(state)
-        close(state, lambda data, family: fit_family(data, options, family))
+    with (
+        task_engine(scheduler, options.n_jobs, state.failures, state.say) as tasks,
+        np.errstate(all="ignore"),
+        threadpool_limits(limits=1),
+        limit_threads(options.n_jobs),
+    ):
+        state.tasks = tasks
+        try:
+            prepare(state)
+            first_fits(state)
+            global_fits(state)
+            system_fits(state)
+            choose(state)
+            close(state, lambda data, family: fit_family(data, options, family))
+        finally:
+            state.tasks = ThreadTasks(options.n_jobs)  # no client kept past its close
     state.failed = state.failures.items()
     return state

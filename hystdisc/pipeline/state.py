@@ -29,8 +29,8 @@ from hystdisc.fitting import OEFit
 from hystdisc.measurement import FitData, Outliers
 from hystdisc.models import TermModel
 from hystdisc.pipeline.options import Options
+from hystdisc.pipeline.tasks import Tasks, ThreadTasks
 from hystdisc.selection import StagedFit
-from hystdisc.simulation.parallel import map_tasks
 
 #: The fields the estimator exposes as fitted attributes (each with a trailing ``_``).
 FITTED = (
@@ -55,6 +55,8 @@ class State:
     options: Options
     say: Callable[[str], None] = field(repr=False)
     failures: Failures = field(default_factory=Failures, repr=False)
+    # where the independent tasks run (default: ThreadTasks(options.n_jobs))
+    tasks: Tasks | None = field(default=None, repr=False)
     # prepare
     single_current: bool = False
     experiment: str = ""
@@ -103,6 +105,10 @@ class State:
     open_library: ResidualTerms | None = None
     failed: dict[str, str] = field(default_factory=dict)
 
+    def __post_init__(self) -> None:
+        if self.tasks is None:
+            self.tasks = ThreadTasks(self.options.n_jobs)
+
     # -- what the stages derive
     @property
     def eq(self) -> EqData:
@@ -142,8 +148,18 @@ class State:
         return list(self.fd.conditions)
 
     def map(self, fn: Callable, items: list, serial: bool = False) -> list:
-        """``fn`` over ``items`` (independent fits) on the discovery's threads, in order."""
-        return map_tasks(fn, items, self.options.n_jobs, serial)
+        """``fn`` over ``items`` (independent fits) on the discovery's engine
+        (:attr:`tasks`: its threads or a Dask cluster), in order; ``serial``: in turn."""
+        return self.tasks.map(fn, items, serial)
+
+    def map_after(
+        self, before: Callable, before_items: list, after: Callable, after_items: list,
+        serial_before: bool = False,
+    ) -> tuple[list, list]:  # fmt: skip
+        """``before`` over ``before_items``, then ``after(item, ready)`` over
+        ``after_items`` (``ready(k)``: the ``k``-th ``before`` result) on the discovery's
+        engine (:func:`~hystdisc.simulation.parallel.map_after` on its threads)."""
+        return self.tasks.map_after(before, before_items, after, after_items, serial_before)
 
     def shape0(self, name: str) -> np.ndarray | None:
         """The stage-1 shape constants of family ``name``'s shape (None before stage 1 or
