@@ -55,7 +55,7 @@ def _fit(kind: str, family: str = FAMILY) -> Discovery:
         data = _with_step(data)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return Discovery(model=family, close_loop=False).fit(data)
+        return Discovery(model=family, close_loop=False, heldout=False).fit(data)
 
 
 def _found(data: Dataset | str, output: bool = False, family: str = FAMILY):
@@ -64,7 +64,7 @@ def _found(data: Dataset | str, output: bool = False, family: str = FAMILY):
     else:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            d = Discovery(model=family, close_loop=False).fit(data)
+            d = Discovery(model=family, close_loop=False, heldout=False).fit(data)
     fit = d.family_fits_[family]
     if output:
         return regress_output_residual(d.fit_data_, fit, seed=0)
