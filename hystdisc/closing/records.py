@@ -83,7 +83,9 @@ class EffectVerdict:
         The refit is usable: finite, its simulation did not blow up.
     improves : bool
         It lowers BIC by more than :data:`~hystdisc.closing.refit.EFFECT_BIC_MARGIN` and
-        removes at least :data:`~hystdisc.closing.rounds.MIN_EXCESS_SHARE` of the excess.
+        removes at least :data:`~hystdisc.closing.rounds.MIN_EXCESS_SHARE` of the excess,
+        or lowers the held-out error of every one of its (at least
+        :data:`~hystdisc.closing.rounds.MIN_FOLDS_ALL`) held-out folds.
     significant : bool
         :attr:`wald_chi2` is above ``log N``.
     predicts : bool
@@ -98,6 +100,11 @@ class EffectVerdict:
     heldout_refit : bool
         Its held-out error is that of folds refitted completely from the joint optimum
         (every other test had passed and the quick estimate said it does not predict).
+    heldout_folds, heldout_folds_lower : int or None
+        For a refit that lowers BIC, is significant and admissible but removes less than
+        :data:`~hystdisc.closing.rounds.MIN_EXCESS_SHARE` of the excess: its held-out
+        folds, and those whose error it lowers (it improves when it lowers every one of
+        at least :data:`~hystdisc.closing.rounds.MIN_FOLDS_ALL`); None otherwise.
     """
 
     name: str
@@ -130,6 +137,8 @@ class EffectVerdict:
     wants: str | None = None
     heldout_skipped: bool = False
     heldout_refit: bool = False
+    heldout_folds: int | None = None
+    heldout_folds_lower: int | None = None
 
     @property
     def acceptable(self) -> bool:
@@ -153,9 +162,15 @@ class EffectVerdict:
         if not lowered:
             failed.append("did not lower BIC")
         elif not self.improves:
+            folds = ""
+            if self.heldout_folds is not None:
+                folds = (
+                    f" and lowers the held-out error in {self.heldout_folds_lower} of its "
+                    f"{self.heldout_folds} held-out folds"
+                )
             failed.append(
                 f"removes only {100 * self.excess_share:.0f} % of the residual's excess over "
-                "the noise"
+                f"the noise{folds}"
             )
         if not self.significant:
             wz = np.sqrt(self.wald_chi2 or 0.0)

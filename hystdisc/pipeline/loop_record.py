@@ -67,6 +67,9 @@ def effect_trial(v: EffectVerdict) -> EffectTrial:
         optional["note"] = v.note
     if v.points_at is not None:
         optional["points_at"] = v.points_at
+    if v.heldout_folds is not None:
+        optional["heldout_folds"] = v.heldout_folds
+        optional["heldout_folds_lower"] = v.heldout_folds_lower
     return EffectTrial.make(
         name=v.name,
         round=v.round,

@@ -319,7 +319,7 @@ class EffectTrial(Record):
         The same for BIC.
     heldout_rms_before, heldout_rms_after : float or None
         The same for the held-out RMS (schema 3); ``heldout_rms_after`` is None also when
-        the refit failed another test (BIC, excess share, significance, admissibility):
+        the refit failed another test (BIC, significance, admissibility):
         its held-out error is computed only when it could decide the verdict.
     admissible : bool or None
         The refit is physically admissible (False also for an effect the data want with a
@@ -344,6 +344,10 @@ class EffectTrial(Record):
         Why it was not accepted (absent when accepted).
     removed : bool
         Accepted, then dropped again by a later effect (absent unless so).
+    heldout_folds, heldout_folds_lower : int or None
+        For a refit that lowered BIC, significant and admissible, but removed less than
+        a tenth of the excess: its held-out folds and those whose error it lowered (it is
+        accepted only when it lowered every one of at least four); absent otherwise.
     restarted : bool
         The refit had a start from the family fitted again on the shifted angle (the
         offset's, from its stage-1 value or from a refit that fitted better but did not
@@ -375,6 +379,8 @@ class EffectTrial(Record):
     note: str | None = None
     removed: bool = False
     restarted: bool = False
+    heldout_folds: int | None = None
+    heldout_folds_lower: int | None = None
     extra: dict[str, Any] = field(default_factory=dict, repr=False)
 
 

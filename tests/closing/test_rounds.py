@@ -34,3 +34,31 @@ def test_a_delay_the_scan_saw_but_did_not_call_goes_to_the_loop():
     assert seen_delay(state(True, -2400.0)) == ()  # found: it entered every family
     assert seen_delay(state(False, 9.4)) == ()  # nothing seen
     assert seen_delay(SimpleNamespace(delay_scan=None)) == ()  # not scanned
+
+
+def test_each_folds_heldout_error():
+    """One RMS per held-out fold (a test condition's runs pooled), masked samples out."""
+    import numpy as np
+
+    from hystdisc.closing.records import EffectVerdict
+    from hystdisc.closing.rounds import fold_rms
+
+    y = [np.zeros(4), np.zeros(4), np.zeros(4)]
+    data = SimpleNamespace(
+        y=y,
+        mask=[np.array([True, True, True, False])] * 3,
+        folds=lambda: [[0, 2], [1]],  # runs 0 and 2 share a test condition
+    )
+    preds = [np.array([1.0, 1.0, 1.0, 99.0]), np.full(4, 2.0), np.array([3.0, 3.0, 3.0, 0.0])]
+    rms = fold_rms(data, SimpleNamespace(heldout_predictions=preds))
+    assert rms == [np.sqrt(5.0), 2.0]
+    assert fold_rms(data, SimpleNamespace(heldout_predictions=None)) is None
+    # the verdict says how many folds it lowered when that decided it
+    v = EffectVerdict("shear_thinning", 1, 0.2, rms_before=2.0, rms_after=1.9, bic_before=0.0,
+                      bic_after=-300.0, wald_chi2=100.0, heldout_rms_before=2.0,
+                      heldout_rms_after=1.8, ok=True, significant=True, excess_share=0.05,
+                      heldout_folds=6, heldout_folds_lower=5)  # fmt: skip
+    assert v.rejection() == (
+        "removes only 5 % of the residual's excess over the noise and lowers the held-out "
+        "error in 5 of its 6 held-out folds"
+    )
