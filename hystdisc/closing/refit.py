@@ -112,13 +112,13 @@ def candidate_effects(fit: OEFit, data: FitData) -> tuple[list[str], list[Effect
                 if eff.structural
                 else "its own current laws cover the current dependence"
             )
+        elif eff.experiments and data.experiment not in eff.experiments:
+            reason = (
+                f"built for {', '.join(eff.experiments)} experiments only (its {data.experiment} "
+                "form is not built)"
+            )
         elif eff.structural:
-            if eff.experiments and data.experiment not in eff.experiments:
-                reason = (
-                    f"built for {', '.join(eff.experiments)} experiments only (its {data.experiment} "
-                    "form is not built)"
-                )
-            elif any(EFFECTS[e].structural for e in par.effects):
+            if any(EFFECTS[e].structural for e in par.effects):
                 reason = "the model already has a structural effect"
             elif not exp.motion_imposed and not has_spring(fit):
                 reason = "no rig spring (k_s is not significantly above 0): no beam to start from"

@@ -201,9 +201,15 @@ def _fake_data(currents, experiment="release"):
 def test_candidates_follow_the_family_and_the_data():
     five = _fake_data([0, 0.25, 0.5, 0.75, 1.0])
     cand, skipped = candidate_effects(_fake_fit("dahl"), five)
-    # Dahl lacks every catalogued effect; a release rig records one channel (no delay)
-    assert cand == [e for e in EFFECTS if e != "channel_delay"]
-    assert skipped == [EffectSkipped("channel_delay", "a release experiment records one channel")]
+    # Dahl lacks every catalogued effect; a release rig records one channel (no delay),
+    # and its damper is the beam's (no play between a driven motion and the damper)
+    assert cand == [e for e in EFFECTS if e not in ("channel_delay", "backlash")]
+    assert skipped == [
+        EffectSkipped("channel_delay", "a release experiment records one channel"),
+        EffectSkipped(
+            "backlash", "built for driven experiments only (its release form is not built)"
+        ),
+    ]
     cand, skipped = candidate_effects(_fake_fit("bingham"), five)
     assert cand == [
         "quadratic_damping",
