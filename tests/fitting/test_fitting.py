@@ -274,3 +274,30 @@ def test_full_heldout_is_the_refit_of_each_fold_from_the_joint_optimum():
     assert full.heldout_rms == pytest.approx(np.sqrt(sq / n), rel=1e-6)
     # at the noise floor the quick estimate is the refit, to a fraction of the noise
     assert full.heldout_rms == pytest.approx(fit.heldout_rms, rel=0.05)
+
+
+def test_a_fold_the_quick_estimate_misses_by_far_is_refitted_fully(monkeypatch):
+    """A quick estimate that leaves its basin (here: damping 20 times the truth, stable but
+    wrong) predicts its fold far worse than the joint fit fits it; that fold is refitted
+    fully from the joint optimum, so the held-out error is the full refits' (a state-space
+    family's step did this on a driven set: 9.27 quick, 0.146 refitted)."""
+    from hystdisc.fitting.heldout import FOLD_RECHECK, HeldOutFolds
+
+    fd = _release_data(noise=1e-3, seed=11)
+    par = FamilyParametrization("dahl", "release", _start(1.1))
+    fit = OutputErrorFitter(fd, par, max_nfev=60).fit(heldout=False)
+    full = OutputErrorFitter(fd, par, max_nfev=60).heldout_at(fit, full=True)
+    names = list(par.names)
+    refit = HeldOutFolds._fold_refit
+
+    def astray(self, fold, v_gn, rss_gn, full=False):
+        if full:
+            return refit(self, fold, v_gn, rss_gn, True)
+        x = np.array(v_gn[: self.npar])
+        x[names.index("k_x")] *= 20.0
+        return x
+
+    monkeypatch.setattr(OutputErrorFitter, "_fold_refit", astray)
+    quick = OutputErrorFitter(fd, par, max_nfev=60).heldout_at(fit)
+    assert quick.heldout_rms == pytest.approx(full.heldout_rms, rel=1e-9)
+    assert quick.heldout_rms < FOLD_RECHECK * fit.rms
