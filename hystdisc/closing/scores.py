@@ -256,7 +256,9 @@ def _equation_evidence(
 PLAY_PROBE = 0.02
 
 
-def _secant_columns(data: FitData, fitter, par, v: np.ndarray, r: np.ndarray, J: np.ndarray):
+def _secant_columns(
+    data: FitData, fitter: OutputErrorFitter, par, v: np.ndarray, r: np.ndarray, J: np.ndarray
+) -> None:
     """Replace (in place) the columns of ``J`` of the parameters that set a driven run's
     backlash (:attr:`~hystdisc.models.Effect.play_param`) by the secant of the residuals
     ``r`` to :data:`PLAY_PROBE` of the smallest motion amplitude: the tangent at a width

@@ -13,7 +13,7 @@ lag is long, at a high one short). The damper's velocity is the actuator's while
 is closed and 0 while it is open. The model in term form is driven by ``y`` and its
 velocity instead of the measured motion (:meth:`~hystdisc.models.effects.Effect.apply`
 writes ``r_b`` into the term model's ``play``; a state-space model reads it from its
-values by :func:`play_width`).
+values: :meth:`~hystdisc.models.system.StateSpaceModel.input_play`).
 
 Examples
 --------
@@ -26,8 +26,6 @@ Examples
 """
 
 from __future__ import annotations
-
-from collections.abc import Mapping
 
 import numpy as np
 from numba import njit
@@ -88,11 +86,6 @@ def play_motion(
     x = np.ascontiguousarray(theta, dtype=np.float64)
     v = np.ascontiguousarray(theta_dot, dtype=np.float64)
     return _play_with_velocity(x, v, float(r_b))
-
-
-def play_width(values: Mapping[str, float]) -> float:
-    """The backlash half-width among named parameter ``values`` (0 without one)."""
-    return float(values.get(BACKLASH.play_param, 0.0))
 
 
 BACKLASH = Effect(
