@@ -16,10 +16,9 @@ import numpy as np
 from hystdisc.data import Dataset, estimate_noise, filter_windows
 from hystdisc.data.envelope import Envelope, RunEnvelope
 from hystdisc.discovery.differentiation import differentiate
-from hystdisc.measurement.chain import delayed, measured_output, unfiltered_motion
+from hystdisc.measurement.chain import measured_output, seen_motion, unfiltered_motion
 from hystdisc.measurement.motion import estimate_motion
 from hystdisc.models import TermModel
-from hystdisc.models.backlash import play_motion
 from hystdisc.registry import get_experiment
 from hystdisc.simulation import simulate_driven_runs, simulate_mech, simulate_system
 
@@ -138,10 +137,7 @@ def predict_dataset(
         # the force channel lags: the damper answered the motion delay s earlier, through
         # its backlash (as the fit sees it: hystdisc.fitting.simulate.delayed_motion)
         for r, d in zip(runs, ders, strict=True):
-            if delay != 0.0:
-                d.theta = delayed(r.t, d.theta, delay)
-                d.theta_dot = delayed(r.t, d.theta_dot, delay)
-            d.theta, d.theta_dot = play_motion(d.theta, d.theta_dot, gap)
+            d.theta, d.theta_dot = seen_motion(r.t, d.theta, d.theta_dot, delay, gap)
         delay = 0.0
     preds = _predict(tm, runs, ders, exp, input_hold)
     return [

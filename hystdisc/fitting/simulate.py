@@ -20,10 +20,9 @@ from collections.abc import Mapping
 import numpy as np
 
 from hystdisc.errors import HystdiscError
-from hystdisc.measurement.chain import delayed, measured_output
+from hystdisc.measurement.chain import measured_output, seen_motion
 from hystdisc.measurement.fitdata import FitData
 from hystdisc.models import TermModel
-from hystdisc.models.backlash import play_motion
 from hystdisc.models.compiled import N_BASE, base_coefficients
 from hystdisc.models.system import StateSpaceModel
 from hystdisc.simulation import driven_shared, mech_batch, simulate_system
@@ -117,10 +116,7 @@ def delayed_motion(
     and the damper (:func:`~hystdisc.models.backlash.play_motion`) acts on that motion.
     ``tau = 0`` and ``play = 0``: the run's own.
     """
-    theta, theta_dot = data.theta[r], data.theta_dot[r]
-    if tau != 0.0:
-        theta, theta_dot = delayed(data.t[r], theta, tau), delayed(data.t[r], theta_dot, tau)
-    return play_motion(theta, theta_dot, play)
+    return seen_motion(data.t[r], data.theta[r], data.theta_dot[r], tau, play)
 
 
 def output_delay(data: FitData, tau: float) -> float:

@@ -32,6 +32,7 @@ import numpy as np
 
 from hystdisc.data import motion_frequency
 from hystdisc.measurement.fitdata import FitData
+from hystdisc.models.backlash import play_motion
 
 #: Harmonics of the fundamental used to reconstruct a periodic motion, at most.
 MAX_HARMONICS = 15
@@ -67,6 +68,23 @@ def delayed(t: np.ndarray, y: np.ndarray, tau: float) -> np.ndarray:
     if tau == 0.0:
         return y
     return np.interp(t - tau, t, y)
+
+
+def seen_motion(
+    t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray, tau: float, play: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """A driven test's measured motion and velocity as the damper saw them: ``tau`` s
+    earlier (:func:`delayed`: the force channel lags the motion's), then through a play
+    of half-width ``play`` (:func:`~hystdisc.models.backlash.play_motion`).
+
+    Examples
+    --------
+    >>> t = np.arange(5.0)
+    >>> seen_motion(t, t, np.ones(5), 1.0, 0.0)[0].tolist()
+    [0.0, 0.0, 1.0, 2.0, 3.0]
+    """
+    theta = delayed(t, theta, tau)
+    return play_motion(theta, delayed(t, theta_dot, tau), play)
 
 
 def causal_average(y: np.ndarray, window: int, step: int = 1) -> np.ndarray:
