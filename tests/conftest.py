@@ -1,8 +1,9 @@
-"""Shared test set-up: a non-interactive matplotlib backend, the measured-data folder and
-the fuzz tests' scratch folder and counts."""
+"""Shared test set-up: a non-interactive matplotlib backend, the measured-data folder,
+the fuzz tests' scratch folder and counts, and a local Dask cluster."""
 
 from __future__ import annotations
 
+import logging
 import os
 from pathlib import Path
 
@@ -39,3 +40,19 @@ def fuzz_counts(request):
 
     yield
     report_counts(request)
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    """A real two-worker Dask cluster on local processes, one thread each (tasks are
+    pickled to the workers); skipped without dask.distributed."""
+    distributed = pytest.importorskip("distributed")
+    cluster = distributed.LocalCluster(
+        n_workers=2,
+        threads_per_worker=1,
+        processes=True,
+        dashboard_address=None,
+        silence_logs=logging.ERROR,
+    )
+    yield cluster
+    cluster.close()

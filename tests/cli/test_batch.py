@@ -4,7 +4,6 @@ byte-identical ``results.json`` files to the serial run."""
 from __future__ import annotations
 
 import gc
-import logging
 import subprocess
 import sys
 import time
@@ -76,21 +75,6 @@ def test_jobs_is_byte_identical_to_serial(datasets, serial, tmp_path):
     )
     got = {p.name: p.read_bytes() for p in sorted(tmp_path.glob("*.results.json"))}
     assert got == serial
-
-
-@pytest.fixture(scope="module")
-def cluster():
-    """A real two-worker Dask cluster on local processes (tasks are pickled to the workers)."""
-    distributed = pytest.importorskip("distributed")
-    cluster = distributed.LocalCluster(
-        n_workers=2,
-        threads_per_worker=1,
-        processes=True,
-        dashboard_address=None,
-        silence_logs=logging.ERROR,
-    )
-    yield cluster
-    cluster.close()
 
 
 def _tasks_done(cluster) -> int:

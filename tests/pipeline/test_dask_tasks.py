@@ -7,7 +7,6 @@ dataset is the bundled ``data_synth/dahl.csv`` with two term families and no clo
 
 from __future__ import annotations
 
-import logging
 import pickle
 import sys
 import time
@@ -32,22 +31,6 @@ from hystdisc.pipeline.tasks import ClusterTasks, Say  # noqa: E402
 DATA = Path(__file__).resolve().parents[2] / "data_synth" / "dahl.csv"
 OPTIONS = {"families": ["dahl", "bingham"], "close_loop": False}
 CLI = ["--families", "dahl,bingham", "--no-effects", "--quiet", "--force"]
-
-
-@pytest.fixture(scope="module")
-def cluster():
-    """Two worker processes of one thread each."""
-    from distributed import LocalCluster
-
-    cluster = LocalCluster(
-        n_workers=2,
-        threads_per_worker=1,
-        processes=True,
-        dashboard_address=None,
-        silence_logs=logging.ERROR,
-    )
-    yield cluster
-    cluster.close()
 
 
 @pytest.fixture(scope="module")
