@@ -314,8 +314,18 @@ def augment(
             screened = True
         if not (screened and rnd.done()):
             for s in refit_queue(scores, first if round_no == 1 else ()):
-                if s.name not in rnd.results:
-                    rnd.attempt(s)
+                if s.name in rnd.results:
+                    continue
+                done = rnd.best() if rnd.done() else None
+                if s.starts is not None and done is not None and s.start_rms >= done[0].rms:
+                    # a structural refit is the loop's dearest (several full fits); once a
+                    # refit of the round is down to the noise and none of the structure's
+                    # screened starts fits better, it is skipped (a mild wheel's best start
+                    # does fit better than the cubic stiffness that also reaches the noise)
+                    why = f"{done[1].name} reached the noise; its best start did not fit better"
+                    _not_refitted(diag, s.name, why)
+                    continue
+                rnd.attempt(s)
         if not rnd.done() and not screened and eq is not None and current.rms > good_rms:
             rnd.screen(eq, scores, diag, s0)
         results = rnd.results
@@ -490,3 +500,10 @@ def close_loop(
         noise_samples,
     )
     return loop
+
+
+def _not_refitted(diag: Diagnosis, name: str, why: str) -> None:
+    """Record in the round's diagnosis why candidate ``name`` was not refitted."""
+    for c in diag.candidates:
+        if c.name == name:
+            c.not_refitted = why

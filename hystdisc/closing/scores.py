@@ -81,6 +81,9 @@ class EffectScore:
         Release: the wheel values of the grid's screened cells, best first; the loop's
         next round screens the best of them only
         (:func:`~hystdisc.closing.structural.score_structural`).
+    not_refitted : str or None
+        Why a candidate whose evidence called for a refit was not refitted (an earlier
+        refit of the round had already brought the residual to the noise); None otherwise.
     """
 
     name: str
@@ -99,6 +102,7 @@ class EffectScore:
     starts: list[dict[str, float]] | None = None
     signature: str | None = None
     cells: list[dict] | None = None
+    not_refitted: str | None = None
 
 
 def with_effects(fit: OEFit, extra: Sequence[str], values: dict[str, float] | None = None):

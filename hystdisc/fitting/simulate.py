@@ -82,8 +82,7 @@ def _kernel_inputs(
         taus = delays if delays is not None else [0.0] * len(runs)
         gaps = plays if plays is not None else [0.0] * len(runs)
         motion = [
-            delayed_motion(data, r, tau, gap)
-            for r, tau, gap in zip(runs, taus, gaps, strict=True)
+            delayed_motion(data, r, tau, gap) for r, tau, gap in zip(runs, taus, gaps, strict=True)
         ]
         out["theta"] = np.concatenate([m[0] for m in motion])
         out["theta_dot"] = np.concatenate([m[1] for m in motion])

@@ -118,6 +118,8 @@ def effect_candidate(s: EffectScore) -> EffectCandidate:
         optional["starts_screened"] = len(s.starts)
     if s.signature:
         optional["signature"] = s.signature
+    if s.not_refitted:
+        optional["not_refitted"] = s.not_refitted
     return EffectCandidate.make(
         name=s.name,
         terms=list(s.terms),

@@ -126,12 +126,16 @@ class StageSections:
         diag = d.diagnosis or []
         names = {e.name for e in tried}
         rest = [c for c in (diag[0].candidates if diag else []) if c.name not in names]
-        if rest:
+        weak = [c for c in rest if not c.not_refitted]
+        if weak:
             self.p(
                 "Not refitted (too little evidence): "
-                + ", ".join(f"{c.name} {num(c.evidence, '.2g')}" for c in rest)
+                + ", ".join(f"{c.name} {num(c.evidence, '.2g')}" for c in weak)
                 + "."
             )
+        for c in rest:
+            if c.not_refitted:
+                self.p(f"Not refitted: {c.name} ({c.not_refitted}).")
         for sk in d.effects_skipped or []:
             self.p(f"Not applicable: {sk.name} ({sk.reason}).")
         if d.effects:

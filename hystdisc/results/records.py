@@ -431,6 +431,9 @@ class EffectCandidate(Record):
         A structural effect: the starts its diagnosis screened.
     signature : str or None
         A structural effect's signature in the residual, in words, when there is one.
+    not_refitted : str or None
+        Why a candidate whose evidence called for a refit was not refitted (an earlier
+        refit of the round had already reached the noise).
     extra : dict
         Keys this version does not know (kept on a round trip).
     """
@@ -449,6 +452,7 @@ class EffectCandidate(Record):
     estimate: dict[str, float] = field(default_factory=dict)
     starts_screened: int | None = None
     signature: str | None = None
+    not_refitted: str | None = None
     extra: dict[str, Any] = field(default_factory=dict, repr=False)
 
 

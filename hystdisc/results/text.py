@@ -122,11 +122,15 @@ def effects_table(res: Results) -> list[str]:
     names = {e.name for e in res.effects_tried or []}
     diag = res.diagnosis or []
     rest = [c for c in (diag[0].candidates if diag else []) if c.name not in names]
-    if rest:
+    weak = [c for c in rest if not c.not_refitted]
+    if weak:
         out.append(
             "  not refitted (too little evidence): "
-            + ", ".join(f"{c.name} {_num(c.evidence, '.2g')}" for c in rest)
+            + ", ".join(f"{c.name} {_num(c.evidence, '.2g')}" for c in weak)
         )
+    for c in rest:
+        if c.not_refitted:
+            out.append(f"  not refitted: {c.name} ({c.not_refitted})")
     for sk in res.effects_skipped or []:
         out.append(f"  not applicable: {sk.name} ({sk.reason})")
     if res.effects:
