@@ -232,6 +232,7 @@ def reselect(
     loop: Any,
     effects: Sequence[str],
     ctx: Context,
+    starts: Mapping[str, float] | None = None,
 ) -> Reselection:
     """Compare the families again with the ``effects`` the loop accepted on ``before``.
 
@@ -252,9 +253,13 @@ def reselect(
     loop : LoopResult
         The loop closed on ``before`` (its final fit carries the effects' values).
     effects : sequence of str
-        The accepted effects with a term form (:func:`term_effects`).
+        The accepted effects with a term form (:func:`term_effects`), and any the loop
+        wanted but rejected (:func:`~hystdisc.closing.again.absorbed`).
     ctx : Context
         The data and the callbacks.
+    starts : mapping of str to float, optional
+        Start values of the parameters of effects that ``loop`` did not accept (a delay
+        stage 1's scan saw).
 
     Returns
     -------
@@ -262,8 +267,14 @@ def reselect(
     """
     say, envelope = ctx.say, ctx.envelope
     final = loop.fit
-    values = effect_values(final, effects)
+    values = {**(starts or {}), **effect_values(final, effects)}
     names = ", ".join(effects)
+    rejected = [e for e in effects if e not in loop.effects]
+    how = (
+        "which the loop then found"
+        if not rejected
+        else f"which the loop's refit of {before} wanted but did not accept ({', '.join(rejected)})"
+    )
     say(f"selection again: every family with {names}")
     fits = refit_families(family_fits, effects, ctx.data, ctx.eq, values, ctx.shapes,
                           ctx.max_nfev, ctx.heldout, ctx.mapper)  # fmt: skip
@@ -300,7 +311,7 @@ def reselect(
         return res
     res.switched = True
     res.note = (
-        f"{before} was selected without {names}, which the loop then found; with {names} "
+        f"{before} was selected without {names}, {how}; with {names} "
         f"in every family {pick} is selected ({table}), and so is its final model "
         f"({versus(new, final)}): {pick} selected"
     )

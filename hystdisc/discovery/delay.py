@@ -79,6 +79,10 @@ class DelayScan:
         ``dbic`` is below ``-MIN_DBIC`` and ``share`` at least :data:`MIN_SHARE`.
     reach : float
         The largest delay scanned, s.
+    best : float
+        The scanned optimum, s, called found or not (``dbic`` and ``share`` are its):
+        the start of the delay when the families are compared again with it
+        (:func:`hystdisc.closing.again.compare_again`).
     """
 
     tau: float
@@ -86,12 +90,13 @@ class DelayScan:
     share: float
     found: bool
     reach: float
+    best: float = 0.0
 
     def to_dict(self) -> dict:
         """The ``results.json`` form."""
         return {
             "tau": self.tau, "dbic": self.dbic, "share": self.share, "found": self.found,
-            "reach": self.reach,
+            "reach": self.reach, "best": self.best,
         }  # fmt: skip
 
 
@@ -152,4 +157,5 @@ def scan_delay(eq: EqData, terms: Sequence[str], s: np.ndarray, shape: str) -> D
     dbic = bic_change(best, base, n, 1)
     share = float(1.0 - best / base) if base > 0 else 0.0
     found = bool(dbic < -MIN_DBIC and share >= MIN_SHARE)
-    return DelayScan(float(tau) if found else 0.0, float(dbic), share, found, float(reach))
+    tau = float(tau)
+    return DelayScan(tau if found else 0.0, float(dbic), share, found, float(reach), tau)

@@ -88,6 +88,13 @@ def seen_delay(state: State) -> tuple[str, ...]:
     return tuple(name for name, eff in EFFECTS.items() if eff.delay_param)
 
 
+def seen_values(state: State) -> dict[str, dict[str, float]]:
+    """The effects of :func:`seen_delay`, each with its delay at the scan's optimum (the
+    start of the delay when the families are compared again with it)."""
+    scan = state.delay_scan
+    return {name: {EFFECTS[name].delay_param: scan.best} for name in seen_delay(state)}
+
+
 def open_library(state: State, fit: OEFit) -> ResidualTerms | None:
     """The open library on the final model's residual (:mod:`hystdisc.closing.open_library`):
     the force residual of a driven test (any family), else the equation residual of a
@@ -122,7 +129,7 @@ def close(state: State, fit_family: Callable) -> None:
                       state.say)  # fmt: skip
         again = failures.guard("comparison with the effects", compare_again,
                                dict(state.family_fits), state.family, state.loop,
-                               ctx)  # fmt: skip
+                               ctx, seen_values(state))  # fmt: skip
         if again is not None:
             state.reselection, state.reduction = again.reselection, again.reduction
         if again is not None and again.bics is not None:  # outliers as first confirmed

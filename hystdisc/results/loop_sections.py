@@ -132,6 +132,8 @@ class DelayScanRecord(Record):
         Whether a delay was found.
     reach : float
         The largest delay scanned, s.
+    best : float or None
+        The scanned optimum, s, called found or not (``dbic`` and ``share`` are its).
     notes : list of str
         The verdict on the selected family, when every family carried the delay.
     extra : dict
@@ -143,6 +145,7 @@ class DelayScanRecord(Record):
     share: float | None = None
     found: bool = False
     reach: float | None = None
+    best: float | None = None
     notes: list[str] = field(default_factory=list)
     extra: dict[str, Any] = field(default_factory=dict, repr=False)
 

@@ -132,14 +132,54 @@ def test_the_loops_final_model_stands_for_its_family_when_its_refit_fits_worse(m
     monkeypatch.setattr(rs, "check_admissible", lambda *args: NS(ok=True, violations=[]))
     closed = []
     ctx = rs.Context(NS(), None, None, closed.append, lambda f: None)
-    res = rs.reselect(dict.fromkeys(refits), "bouc-wen", NS(fit=final), ["offset"], ctx)
+    loop = NS(fit=final, effects=["offset"])
+    res = rs.reselect(dict.fromkeys(refits), "bouc-wen", loop, ["offset"], ctx)
     assert res.fits["bouc-wen"] is final and res.pick == "bouc-wen" and closed == []
     assert res.note == "with offset in every family, bouc-wen is still selected"
     # a loop whose final model fits worse than the refit does not replace it
     final.bic = -800.0
     refits["bouc-wen"] = fit(-1100.0, 1.0e-3)
-    res = rs.reselect(dict.fromkeys(refits), "bouc-wen", NS(fit=final), ["offset"], ctx)
+    res = rs.reselect(dict.fromkeys(refits), "bouc-wen", loop, ["offset"], ctx)
     assert res.fits["bouc-wen"] is refits["bouc-wen"] and res.pick == "bouc-wen"
+
+
+def test_a_delay_the_selected_family_absorbed_enters_the_comparison_again(monkeypatch):
+    # issue 33, never-drawn driven set tanh/17/delay: stage 1's scan saw a 2 ms lag but
+    # did not call it; bouc-wen absorbed it and was selected, and the loop's delay on it
+    # lowered BIC (significant) yet was rejected; tanh with the delay predicts
+    from types import SimpleNamespace as NS
+
+    import hystdisc.closing.again as ag
+    import hystdisc.closing.reselect as rs
+
+    def fit(bic, heldout, effects=()):
+        return NS(bic=bic, heldout_rms=heldout, n_params=8, par=NS(effects=effects),
+                  params={}, term_part=NS(torque={}), is_system=False)  # fmt: skip
+
+    final = fit(-1000.0, 0.134)
+    wanted = NS(name="channel_delay", ok=True, significant=True, bic_before=-1000.0,
+                bic_after=-1200.0)  # fmt: skip
+    loop = NS(fit=final, effects=[], tried=[wanted])
+    refits = {"bouc-wen": fit(-1200.0, 0.130, ("channel_delay",)),
+              "tanh": fit(-3000.0, 0.012, ("channel_delay",))}  # fmt: skip
+    seen = []
+    monkeypatch.setattr(rs, "refit_families", lambda *a, **kw: seen.append(a) or dict(refits))
+    monkeypatch.setattr(rs, "check_admissible", lambda *args: NS(ok=True, violations=[]))
+    monkeypatch.setattr(ag, "reduce_family", lambda *args: None)
+    closed = NS(fit=fit(-3000.0, 0.012, ("channel_delay",)), effects=["channel_delay"])
+    ctx = rs.Context(NS(), None, None, lambda f: closed, lambda f: None)
+    table = dict.fromkeys(refits)
+    out = ag.compare_again(table, "bouc-wen", loop, ctx, {"channel_delay": {"tau_d": 0.002}})
+    (args,) = seen
+    assert args[1] == ["channel_delay"] and args[4] == {"tau_d": 0.002}  # effects, start
+    assert out.family == "tanh" and out.loop is closed
+    assert "which the loop's refit of bouc-wen wanted but did not accept (channel_delay)" in (
+        out.note
+    )
+    # a delay the loop's refit did not want (not significant) is not carried
+    wanted.significant = False
+    out = ag.compare_again(table, "bouc-wen", loop, ctx, {"channel_delay": {"tau_d": 0.002}})
+    assert out.family == "bouc-wen" and out.reselection is None and len(seen) == 1
 
 
 def test_the_record_says_what_was_compared(base):
