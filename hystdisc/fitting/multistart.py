@@ -54,6 +54,7 @@ from hystdisc.fitting.output_error import OEFit, OutputErrorFitter
 from hystdisc.fitting.parametrization import FamilySystemParametrization, Parametrization
 from hystdisc.measurement.fitdata import FitData
 from hystdisc.models import EFFECTS, FAMILIES, RIG_PARAMS, get_family
+from hystdisc.stats import sampling_rate
 
 #: Levenberg-Marquardt iterations of each start before the best is continued.
 SCREEN_NFEV = 8
@@ -548,7 +549,7 @@ def system_fit(
     fam = get_family(name)
     bp = dict(base.params)
     vel = float(np.median([np.max(np.abs(w)) for w in data.theta_dot]))
-    starts = fam.starts(bp, velocity=vel)
+    starts = fam.starts(bp, velocity=vel, dt=1.0 / sampling_rate(data.t))
     # the base's measurement effects (a channel delay every family carries) with their values
     effects = tuple(
         e for e in base.par.effects if not EFFECTS[e].terms and not EFFECTS[e].structural

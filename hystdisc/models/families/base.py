@@ -316,10 +316,11 @@ class SystemFamily(Family):
         return {}
 
     def starts(
-        self, base: Mapping[str, float], velocity: float = 1.0
+        self, base: Mapping[str, float], velocity: float = 1.0, dt: float | None = None
     ) -> list[tuple[str, dict[str, float]]]:
         """Labelled starts of an output-error fit from a fitted standard Bouc-Wen ``base``
-        (``velocity``: the runs' median peak velocity, for the families that need a scale)."""
+        (``velocity``: the runs' median peak velocity, and ``dt``: the sampling interval,
+        for the families that need a scale)."""
         return [("defaults", self.defaults())]
 
     def to_terms(self, p):

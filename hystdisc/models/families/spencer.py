@@ -226,6 +226,14 @@ LIMIT_RATIO = 1e3
 #: A Bouc-Wen shape with ``|beta|`` or ``|gamma|`` above this many times ``A = beta + gamma`` is a
 #: sharp reversal: Spencer is also started from the symmetric shape.
 SHARP_SHAPE = 10.0
+#: The sharpest yield a start keeps: the inner motion that saturates ``z`` (``1 / A``) is
+#: at least this share of the motion in one sample (median peak velocity times the
+#: sampling interval). A Bouc-Wen fit to a Coulomb-like damper can have ``A`` of 1e5
+#: (a Bingham damper's driven set 11: every start mapped from it diverged at once, where
+#: the explicit integrator needs thousands of steps per sample); the published start
+#: is then also tried with ``A`` and ``beta`` softened to this, and the fit sharpens it
+#: as far as the data want.
+YIELD_PER_SAMPLE = 0.1
 
 
 class Spencer(SystemFamily):
@@ -312,11 +320,13 @@ class Spencer(SystemFamily):
         return out
 
     def starts(
-        self, base: Mapping[str, float], velocity: float = 1.0
+        self, base: Mapping[str, float], velocity: float = 1.0, dt: float | None = None
     ) -> list[tuple[str, dict[str, float]]]:
         """Starts from a standard Bouc-Wen fit ``base``: the internal dashpot ``c1`` at
         :data:`START_RATIOS` times ``c0`` (Spencer et al.'s published ratio among them),
         with ``alpha``, ``c0`` and ``A`` scaled so that the loop is Bouc-Wen's at the start.
+        With the sampling interval ``dt``, a published start sharper than the sampling
+        resolves (:data:`YIELD_PER_SAMPLE`) is also given softened.
 
         Examples
         --------
@@ -327,6 +337,10 @@ class Spencer(SystemFamily):
          'c1/c0 = 60, beta = gamma, n = 2', 'c1/c0 = 1000 (the Bouc-Wen fit)']
         >>> SPENCER.starts(bw)[1][1]["c1_a"] > SPENCER.starts(bw)[1][1]["c0_a"]
         True
+        >>> sharp = {**bw, "beta": 6e4, "gamma": 9e4}  # a Coulomb-like yield
+        >>> label, soft = SPENCER.starts(sharp, velocity=1.0, dt=2e-3)[-1]
+        >>> label, soft["A"], soft["beta"]
+        ('c1/c0 = 13.5, beta = gamma, n = 2, A softened to 5000', 5000.0, 2500.0)
         """
         out = []
         A = max(base["beta"] + base["gamma"], 1e-6)
@@ -360,6 +374,13 @@ class Spencer(SystemFamily):
                     "n": n,
                 }
                 out.append((f"c1/c0 = {m:g}{label}", start))
+        if dt is not None and dt > 0 and velocity > 0:
+            a_max = 1.0 / (YIELD_PER_SAMPLE * velocity * dt)
+            label, start = out[1]  # the published ratio and shape
+            if start["A"] > a_max:
+                f = a_max / start["A"]
+                soft = {**start, "A": start["A"] * f, "beta": start["beta"] * f}
+                out.append((f"{label}, A softened to {a_max:.4g}", soft))
         return out
 
     def equations(self) -> str:

@@ -158,11 +158,12 @@ class Tanh(SystemFamily):
         )
 
     def starts(
-        self, base: Mapping[str, float], velocity: float = 1.0
+        self, base: Mapping[str, float], velocity: float = 1.0, dt: float | None = None
     ) -> list[tuple[str, dict[str, float]]]:
         """Starts from a standard Bouc-Wen fit ``base``: its viscous and hysteretic
         torques, and yield velocities at :data:`START_FRACTIONS` of ``velocity`` (the
-        runs' median peak velocity).
+        runs' median peak velocity; ``dt`` is not needed: a yield velocity is no
+        stiffer than the sampling).
 
         Examples
         --------
