@@ -165,3 +165,23 @@ def test_the_loop_runs_on_spencer_and_finds_a_channel_delay():
     assert abs(d.final_fit_.params["tau_d"] - 0.004) < 0.0005
     assert d.final_fit_.rms < 1.1 * noise
     assert d.results_.system_model["effects"] == ["channel_delay"]
+
+
+def test_spencer_converges_on_a_coulomb_like_damper():
+    """Issue 33 item 2: a Bingham damper (Coulomb friction) makes the standard Bouc-Wen fit
+    a near step (A ~ 1e5); every Spencer start mapped from it diverged at once, so Spencer
+    was dropped. The published start softened to the sampling converges."""
+    from hystdisc.fitting.multistart import system_fit
+
+    m = Model("bingham", {"c_a": 0.8, "c_b": 0.4, "f_a": 0.25, "f_b": 1.5, "k_s": 1.5})
+    kw = dict(currents=(0.0, 0.5, 1.0), duration=2.0, fs=250, drives=["0.2@0.5", "0.1@2", "0.05@5"])
+    data = generate(m, "driven", noise=0.02, seed=3, **kw)
+    disc = Discovery(families=("bouc-wen-std",), close_loop=False, heldout=False).fit(data)
+    base = disc.family_fits_["bouc-wen-std"]
+    assert base.params["beta"] + base.params["gamma"] > 1e4  # a Coulomb-like step
+    fit = system_fit("spencer", base, disc.fit_data_, 60)
+    assert fit.diverged == [] and np.isfinite(fit.rms)
+    soft = [label for label in fit.starts if "softened" in label]
+    assert len(soft) == 1 and fit.starts[soft[0]] == min(fit.starts.values())
+    force = np.sqrt(np.mean(np.concatenate(disc.fit_data_.y) ** 2))
+    assert fit.rms < 0.1 * force  # the loop's shape, if not Coulomb's sharpness
