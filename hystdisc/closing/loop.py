@@ -64,7 +64,7 @@ writes it into ``results.json``. The parts live in :mod:`~hystdisc.closing.score
 from __future__ import annotations
 
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 
 import numpy as np
 
@@ -198,6 +198,7 @@ def augment(
     restart: Restart | None = None,
     failures: Failures | None = None,
     first: tuple[str, ...] = (),
+    first_values: Mapping[str, Mapping[str, float]] | None = None,
 ) -> LoopResult:
     """Diagnose, add the effects that improve BIC, and test the final residual.
 
@@ -243,6 +244,9 @@ def augment(
         Effects an earlier step saw signs of: refitted in the first round whatever their
         rank (a channel delay the stage-1 scan saw but could not tell from the structure's
         misfit).
+    first_values : mapping of str to mapping, optional
+        Start values of effects of ``first`` (the play width the open library's terms
+        point at), in place of their one-step estimates.
     noise_samples : list of ndarray, optional
         A sample of the measurement noise (period-to-period differences): the final
         residual's whiteness is judged against its spectrum
@@ -293,6 +297,9 @@ def augment(
             scores += _structural_scores(data, current, structural, cells, say)
             scores.sort(key=lambda s: -s.evidence)
         diag = Diagnosis(round_no, snapshot(scores))
+        if round_no == 1:  # (the diagnosis keeps the one-step estimates)
+            for s in scores:
+                s.estimate = {**s.estimate, **(first_values or {}).get(s.name, {})}
         out.diagnosis.append(diag)
         stage1 = None
         if eq is not None and not current.is_system:
@@ -408,6 +415,7 @@ def close_loop(
     restart: Restart | None = None,
     failures: Failures | None = None,
     first: tuple[str, ...] = (),
+    first_values: Mapping[str, Mapping[str, float]] | None = None,
 ) -> LoopResult:
     """Close the loop on the fit of the selected (or declared) family.
 
@@ -450,6 +458,8 @@ def close_loop(
         again, with all its starts, on the data shifted by the refit's neutral angle).
     first : tuple of str
         Effects refitted in the first round whatever their rank (see :func:`augment`).
+    first_values : mapping of str to mapping, optional
+        Their start values (see :func:`augment`).
 
     Returns
     -------
@@ -474,6 +484,7 @@ def close_loop(
             restart=restart,
             failures=failures,
             first=first,
+            first_values=first_values,
         )
     except Exception as exc:  # noqa: BLE001 - with failures given, every failure is isolated
         expected = (HystdiscError, np.linalg.LinAlgError, ValueError, FloatingPointError)

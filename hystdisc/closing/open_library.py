@@ -20,7 +20,9 @@ to a library of strongly correlated candidates) along its path scored by BIC (ef
 sample size of the record), and kept when they are stable: selected in at least
 :data:`MIN_INCLUSION` of bootstrap refits (pysindy's ``EnsembleOptimizer``, stability
 selection). What is selected is mapped to a catalogued effect whose torque terms it
-covers (:attr:`ResidualTerms.effects`: the loop tries these by output error); the rest
+covers, a play term to the catalogued play (``backlash``) (:attr:`ResidualTerms.effects`:
+the loop tries those it has not refitted by output error,
+:func:`hystdisc.pipeline.close.library_loop`); the rest
 is a *discovered effect*, reported with its equation. Nothing here is accepted: a term
 set is evidence, and only a refit that predicts held-out conditions better is a verdict.
 
@@ -121,6 +123,12 @@ class ResidualTerms:
         """The selected terms no catalogued effect accounts for."""
         return [t for t in self.terms if not t.effect]
 
+    def play_share(self) -> float | None:
+        """The relative width (share of each run's amplitude) of the largest selected
+        play term; None when none was selected."""
+        widths = [play_width(t.name) for t in self.terms]  # largest contribution first
+        return next((r for r in widths if r is not None), None)
+
     def equation(self) -> str:
         """The discovered effect as an equation of the extra torque (empty: none).
 
@@ -203,6 +211,26 @@ def _open_terms(levels: Sequence[float], w_max: float) -> dict[str, Column]:
             i * f(th, w, z, i, t)
         )
     return {k: f for k, f in out.items() if k not in TORQUE_TERMS}  # catalogued: one name
+
+
+def play_width(name: str) -> float | None:
+    """The relative width ``r`` of a play term's name (``play(theta,0.02A)-theta`` and
+    its derivatives: 0.02, the share of each run's amplitude); None for another term.
+
+    Examples
+    --------
+    >>> play_width("i*d/dt[play(theta,0.05A)-theta]"), play_width("theta^2")
+    (0.05, None)
+    """
+    head = "play(theta,"
+    at = name.find(head)
+    if at < 0:
+        return None
+    end = name.find("A)", at)
+    try:
+        return float(name[at + len(head) : end])
+    except ValueError:
+        return None
 
 
 def candidate_library(eq, tm: TermModel) -> tuple[list[str], np.ndarray, np.ndarray, np.ndarray]:
@@ -399,6 +427,14 @@ def select_terms(
         if eff.terms and not eff.structural and all(t in kept for t in eff.terms)
     ]
     owner = {t: name for name in effects for t in EFFECTS[name].terms}
+    # a play operator's terms are the catalogued play effect's signature (it has no
+    # torque term: it acts on the motion the damper sees)
+    plays = [name for name, eff in EFFECTS.items() if eff.play_param]
+    for t in kept:
+        if plays and play_width(t) is not None:
+            owner[t] = plays[0]
+            if plays[0] not in effects:
+                effects.append(plays[0])
     size = np.abs(c) * np.sqrt((Gp[:, keep] ** 2).mean(axis=0))
     order = np.argsort(-size)
     out.terms = [

@@ -155,3 +155,39 @@ def test_the_loop_reports_what_the_catalogue_left(tmp_path):
     html = tmp_path / "report.html"
     write_report(d, data, html)
     assert "open library" in html.read_text(encoding="utf-8")
+
+
+def test_a_play_is_mapped_to_the_catalogued_backlash_and_refitted_first(monkeypatch):
+    """Issue 35 item 2: the library's play terms name the catalogued play (``backlash``),
+    and the loop is closed again with it refitted first, started at the term's width times
+    the runs' median half-range (the catalogue's own score ranked it low on UTFSM)."""
+    from types import SimpleNamespace as NS
+
+    import hystdisc.pipeline.close as close
+    from hystdisc.closing.open_library import DiscoveredTerm, ResidualTerms
+    from hystdisc.faults import Failures
+
+    found = _found(_driven(4, {"backlash": {"r_b": 0.005}}), output=True)
+    assert "backlash" in found.effects and found.play_share() == 0.05
+    assert {t.effect for t in found.terms if "play(" in t.name} == {"backlash"}
+    # the wiring: a loop that left the residual unexplained, without refitting backlash
+    lib = ResidualTerms(
+        [DiscoveredTerm("d/dt[play(theta,0.05A)-theta]", 0.4, 1.0, "backlash")],
+        effects=["backlash"],
+    )
+    monkeypatch.setattr(close, "open_library", lambda state, fit: lib)
+    again = []
+    monkeypatch.setattr(close, "_loop", lambda state, fit, restart: again.append(fit) or "L2")
+    th = [0.2 * np.sin(np.linspace(0, 6, 50)), 0.1 * np.sin(np.linspace(0, 6, 50))]
+    loop = NS(unexplained=True, tried=[NS(name="coulomb")], effects=[], fit="F1")
+    state = NS(loop=loop, failures=Failures(), fd=NS(theta=th), say=lambda m: None)
+    assert close.library_loop(state, "F0", None) == "L2" and again == ["F0"]
+    (r_b,) = state.library_first["backlash"].values()
+    half = np.median([0.5 * np.ptp(x) for x in th])
+    assert r_b == pytest.approx(0.05 * half)
+    # nothing again when the loop refitted it already, or explained the residual
+    again.clear()
+    loop.tried.append(NS(name="backlash"))
+    assert close.library_loop(state, "F0", None) is None and again == []
+    loop.unexplained = False
+    assert close.library_loop(state, "F0", None) is None
