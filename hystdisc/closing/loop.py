@@ -90,7 +90,7 @@ from hystdisc.closing.residual import (
     natural_frequency,
 )
 from hystdisc.closing.rounds import Restart, Round, refit_queue, snapshot
-from hystdisc.closing.scores import EffectScore, score_effects, wald_chi2
+from hystdisc.closing.scores import EffectScore, score_effects, wald_chi2, with_effects
 from hystdisc.closing.structural import score_structural
 from hystdisc.data.envelope import Envelope
 from hystdisc.errors import HystdiscError, HystdiscWarning
@@ -104,6 +104,10 @@ from hystdisc.fitting import (
 from hystdisc.measurement import FitData
 from hystdisc.models import EFFECTS
 from hystdisc.stats import masked, sampling_rate
+
+#: ``library(fit)``: the catalogued effects an open regression of ``fit``'s residual points
+#: at, each with start values of its parameters (:func:`augment`).
+Library = Callable[[OEFit], Mapping[str, Mapping[str, float]]]
 
 #: Above this many times the noise the current optimum may be a trap for the local views:
 #: the stage-1 starts of the augmented structures are screened first.
@@ -198,7 +202,7 @@ def augment(
     restart: Restart | None = None,
     failures: Failures | None = None,
     first: tuple[str, ...] = (),
-    first_values: Mapping[str, Mapping[str, float]] | None = None,
+    library: Library | None = None,
 ) -> LoopResult:
     """Diagnose, add the effects that improve BIC, and test the final residual.
 
@@ -244,9 +248,11 @@ def augment(
         Effects an earlier step saw signs of: refitted in the first round whatever their
         rank (a channel delay the stage-1 scan saw but could not tell from the structure's
         misfit).
-    first_values : mapping of str to mapping, optional
-        Start values of effects of ``first`` (the play width the open library's terms
-        point at), in place of their one-step estimates.
+    library : callable, optional
+        ``library(fit)``: the catalogued effects an open regression of ``fit``'s residual
+        points at, each with start values (:data:`Library`). Called once, when a round
+        accepts nothing while the residual is above the noise; the effects it names that
+        no round refitted are refitted in one more round, first and from those values.
     noise_samples : list of ndarray, optional
         A sample of the measurement noise (period-to-period differences): the final
         residual's whiteness is judged against its spectrum
@@ -285,6 +291,8 @@ def augment(
     steps: dict[str, EffectVerdict] = {}  # each accepted effect's verdict
     fits: dict[frozenset, OEFit] = {frozenset(): fit}  # best fit of each effect set
     cells: dict[str, list[dict] | None] = {}  # a structural effect's best screened cells
+    forced, forced_values = tuple(first), {}  # refitted first this round
+    asked = library is None
     for round_no in range(1, 2 * len(EFFECTS) + 1):
         if current.rms <= good_rms and noise_std == floor:
             break  # within the simulator's own accuracy (noise-free data): nothing to explain
@@ -297,9 +305,6 @@ def augment(
             scores += _structural_scores(data, current, structural, cells, say)
             scores.sort(key=lambda s: -s.evidence)
         diag = Diagnosis(round_no, snapshot(scores))
-        if round_no == 1:  # (the diagnosis keeps the one-step estimates)
-            for s in scores:
-                s.estimate = {**s.estimate, **(first_values or {}).get(s.name, {})}
         out.diagnosis.append(diag)
         stage1 = None
         if eq is not None and not current.is_system:
@@ -320,8 +325,11 @@ def augment(
             rnd.screen(eq, scores, diag, s0)  # far from the noise: the global view first
             screened = True
         if not (screened and rnd.done()):
-            for s in refit_queue(scores, first if round_no == 1 else ()):
+            for s in refit_queue(scores, forced):
                 if s.name in rnd.results:
+                    continue
+                if s.name in forced_values and s.starts is None:
+                    rnd.attempt(s, start=_start_at(current, s.name, forced_values[s.name]))
                     continue
                 done = rnd.best() if rnd.done() else None
                 if s.starts is not None and done is not None and s.start_rms >= done[0].rms:
@@ -336,6 +344,7 @@ def augment(
         if not rnd.done() and not screened and eq is not None and current.rms > good_rms:
             rnd.screen(eq, scores, diag, s0)
         results = rnd.results
+        forced, forced_values = (), {}
         rejected |= rnd.failed - set(results)
         w = rnd.best()
         for _, verdict in results.values():
@@ -374,6 +383,19 @@ def augment(
                 )
                 current = base
                 fits[frozenset(out.effects)] = base
+                continue
+        if not asked and current.rms > good_rms:
+            asked = True
+            tried = {v.name for v in out.tried}
+            extra = {
+                n: dict(v)
+                for n, v in library(current).items()
+                if n in candidates and n not in tried and n not in out.effects
+            }
+            if extra:
+                say(f"closing the loop: the open library points at {', '.join(extra)}")
+                forced, forced_values = tuple(extra), extra
+                rejected -= set(extra)
                 continue
         break
     out.fit = current
@@ -415,7 +437,7 @@ def close_loop(
     restart: Restart | None = None,
     failures: Failures | None = None,
     first: tuple[str, ...] = (),
-    first_values: Mapping[str, Mapping[str, float]] | None = None,
+    library: Library | None = None,
 ) -> LoopResult:
     """Close the loop on the fit of the selected (or declared) family.
 
@@ -458,8 +480,8 @@ def close_loop(
         again, with all its starts, on the data shifted by the refit's neutral angle).
     first : tuple of str
         Effects refitted in the first round whatever their rank (see :func:`augment`).
-    first_values : mapping of str to mapping, optional
-        Their start values (see :func:`augment`).
+    library : callable, optional
+        The open library on a residual the rounds leave (see :func:`augment`).
 
     Returns
     -------
@@ -484,7 +506,7 @@ def close_loop(
             restart=restart,
             failures=failures,
             first=first,
-            first_values=first_values,
+            library=library,
         )
     except Exception as exc:  # noqa: BLE001 - with failures given, every failure is isolated
         expected = (HystdiscError, np.linalg.LinAlgError, ValueError, FloatingPointError)
@@ -518,3 +540,10 @@ def _not_refitted(diag: Diagnosis, name: str, why: str) -> None:
     for c in diag.candidates:
         if c.name == name:
             c.not_refitted = why
+
+
+def _start_at(fit: OEFit, name: str, values: Mapping[str, float]) -> dict[str, float]:
+    """A full start of ``fit`` plus effect ``name`` at ``values`` (the rest of its
+    parameters where it is absent)."""
+    par, x = with_effects(fit, [name], dict(values))
+    return dict(zip(par.names, map(float, x), strict=True))

@@ -22,7 +22,7 @@ sample size of the record), and kept when they are stable: selected in at least
 selection). What is selected is mapped to a catalogued effect whose torque terms it
 covers, a play term to the catalogued play (``backlash``) (:attr:`ResidualTerms.effects`:
 the loop tries those it has not refitted by output error,
-:func:`hystdisc.pipeline.close.library_loop`); the rest
+:func:`hystdisc.pipeline.close.library_effects`); the rest
 is a *discovered effect*, reported with its equation. Nothing here is accepted: a term
 set is evidence, and only a refit that predicts held-out conditions better is a verdict.
 

@@ -73,43 +73,32 @@ def _loop(state: State, fit: OEFit, restart: Callable | None) -> LoopResult:
         noise_samples=state.noise.samples if state.noise is not None else None,
         restart=restart,
         failures=state.failures,
-        first=seen_delay(state) + tuple(state.library_first),
-        first_values=state.library_first,
+        first=seen_delay(state),
+        library=lambda f: library_effects(state, f),
     )
 
 
-def library_loop(state: State, fit: OEFit, restart: Callable | None) -> LoopResult | None:
-    """The loop closed again on ``fit`` when the first left the residual unexplained and
-    the open library's terms point at catalogued effects it did not refit (a play term:
-    the catalogued play, started at the term's width times the runs' median half-range):
-    those are refitted first, judged as every effect; None when there are none.
+def library_effects(state: State, fit: OEFit) -> dict[str, dict[str, float]]:
+    """The loop's open library (:func:`~hystdisc.closing.loop.augment`'s ``library``):
+    the catalogued effects the open library finds in ``fit``'s residual, each with start
+    values (a play term: the catalogued play at the term's width times the runs' median
+    half-range); nothing when the library fails.
 
     The catalogue's own diagnosis ranks an effect by its local signature at the current
     optimum, which a play's misses: on the UTFSM damper its secant evidence was 0.012,
     while the library selected ``play(theta,0.02A)-theta`` in every bootstrap refit."""
-    loop = state.loop
-    if loop is None or not loop.unexplained:
-        return None
-    lib = state.failures.guard("open library", open_library, state, loop.fit)
+    lib = state.failures.guard("open library", open_library, state, fit)
     if lib is None:
-        return None
-    refitted = {v.name for v in loop.tried} | set(loop.effects)
-    new: dict[str, dict[str, float]] = {}
+        return {}
+    out: dict[str, dict[str, float]] = {}
+    share = lib.play_share()
     for name in lib.effects:
-        if name in refitted:
-            continue
         eff = EFFECTS[name]
-        values: dict[str, float] = {}
-        share = lib.play_share()
+        out[name] = {}
         if eff.play_param and share is not None:
             half = [0.5 * float(np.ptp(th)) for th in state.fd.theta if th.size]
-            values[eff.play_param] = share * float(np.median(half))
-        new[name] = values
-    if not new:
-        return None
-    state.say(f"closing the loop again: the open library points at {', '.join(new)}")
-    state.library_first = new
-    return _loop(state, fit, restart)
+            out[name][eff.play_param] = share * float(np.median(half))
+    return out
 
 
 def seen_delay(state: State) -> tuple[str, ...]:
@@ -156,7 +145,6 @@ def close(state: State, fit_family: Callable) -> None:
     if opts.close_loop:
         restart = shift_restart(state.dataset, fit_family, state.say, min_shift=fd.noise_std)
         state.loop = _loop(state, selected, restart)
-        state.loop = library_loop(state, selected, restart) or state.loop
     state.bics = {n: f.bic for n, f in state.family_fits.items()}
     # the staged laws belong to the selected family alone: no other family replaces it
     staged_changed = state.staged is not None and state.staged.changed

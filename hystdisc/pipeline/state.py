@@ -103,9 +103,6 @@ class State:
     final_admissibility: Any = None
     # what the open library finds in a residual the catalogue leaves (or None)
     open_library: ResidualTerms | None = None
-    # effects the open library pointed at that the first loop did not refit, with their
-    # start values: every later loop refits them first (close.library_loop)
-    library_first: dict[str, dict[str, float]] = field(default_factory=dict)
     failed: dict[str, str] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
