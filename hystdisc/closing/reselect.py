@@ -254,7 +254,7 @@ def reselect(
         The loop closed on ``before`` (its final fit carries the effects' values).
     effects : sequence of str
         The accepted effects with a term form (:func:`term_effects`), and any the loop
-        wanted but rejected (:func:`~hystdisc.closing.again.absorbed`).
+        passed every test but the held-out one (:func:`~hystdisc.closing.again.absorbed`).
     ctx : Context
         The data and the callbacks.
     starts : mapping of str to float, optional
@@ -273,7 +273,8 @@ def reselect(
     how = (
         "which the loop then found"
         if not rejected
-        else f"which the loop's refit of {before} wanted but did not accept ({', '.join(rejected)})"
+        else f"which the loop's refit of {before} fitted better but did not predict better "
+        f"({', '.join(rejected)})"
     )
     say(f"selection again: every family with {names}")
     fits = refit_families(family_fits, effects, ctx.data, ctx.eq, values, ctx.shapes,
