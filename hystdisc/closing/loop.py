@@ -332,12 +332,23 @@ def augment(
                     rnd.attempt(s, start=_start_at(current, s.name, forced_values[s.name]))
                     continue
                 done = rnd.best() if rnd.done() else None
-                if s.starts is not None and done is not None and s.start_rms >= done[0].rms:
+                if (
+                    s.starts is not None
+                    and done is not None
+                    and not s.signature
+                    and s.start_rms >= done[0].rms
+                ):
                     # a structural refit is the loop's dearest (several full fits); once a
-                    # refit of the round is down to the noise and none of the structure's
-                    # screened starts fits better, it is skipped (a mild wheel's best start
-                    # does fit better than the cubic stiffness that also reaches the noise)
-                    why = f"{done[1].name} reached the noise; its best start did not fit better"
+                    # refit of the round is down to the noise, a structure whose signature
+                    # the residual does not show and none of whose screened starts fits
+                    # better is skipped (a mild wheel's best start does fit better than the
+                    # cubic stiffness that also reaches the noise; a driven mount, whose
+                    # screen says nothing, is judged by its refit: channel_delay reaches
+                    # 1.07x the noise behind a mount, the mount the noise)
+                    why = (
+                        f"{done[1].name} reached the noise; no signature of it, and its best "
+                        "start did not fit better"
+                    )
                     _not_refitted(diag, s.name, why)
                     continue
                 rnd.attempt(s)

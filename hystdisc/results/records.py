@@ -423,17 +423,13 @@ class EffectCandidate(Record):
         Output-error RMS and BIC change of its stage-1 start (when screened).
     lm : float
         Score statistic.
-    predicted_rms, predicted_dbic : float
-        Predicted RMS and BIC change after adding it.
-    estimate : dict of str to float
-        One-step Gauss-Newton estimate of its parameters.
-    starts_screened : int or None
-        A structural effect: the starts its diagnosis screened.
-    signature : str or None
-        A structural effect's signature in the residual, in words, when there is one.
+    predicted_rms, predicted_dbic, estimate : float, float, dict of str to float
+        Predicted RMS and BIC change after adding it, and its parameters' one-step estimate.
+    starts_screened, signature : int or None, str or None
+        A structural effect: the starts its diagnosis screened, and its signature in the
+        residual in words, when there is one.
     not_refitted : str or None
-        Why a candidate whose evidence called for a refit was not refitted (an earlier
-        refit of the round had already reached the noise).
+        Why a candidate whose evidence called for a refit was not refitted.
     extra : dict
         Keys this version does not know (kept on a round trip).
     """
