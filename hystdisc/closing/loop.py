@@ -320,12 +320,15 @@ def augment(
             data, current, round_no, max_nfev, heldout, noise_std, say, envelope, stage1, restart,
             failures,
         )  # fmt: skip
-        screened = False
-        if eq is not None and current.rms > FAR_RATIO * noise_std:
+        # the library's round refits what the library named, nothing the rounds before
+        # already weighed (on the UTFSM CSV the usual queue refitted coulomb and bias again)
+        screened = bool(forced_values)
+        if not screened and eq is not None and current.rms > FAR_RATIO * noise_std:
             rnd.screen(eq, scores, diag, s0)  # far from the noise: the global view first
             screened = True
         if not (screened and rnd.done()):
-            for s in refit_queue(scores, forced):
+            queue = refit_queue(scores, forced)
+            for s in [q for q in queue if q.name in forced_values] if forced_values else queue:
                 if s.name in rnd.results:
                     continue
                 if s.name in forced_values and s.starts is None:
