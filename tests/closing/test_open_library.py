@@ -176,7 +176,7 @@ def test_a_play_is_mapped_to_the_catalogued_backlash_and_refitted_first(monkeypa
     from hystdisc.closing.open_library import DiscoveredTerm, ResidualTerms
     from hystdisc.faults import Failures
 
-    found = _found(_driven(4, {"backlash": {"r_b": 0.005}}), output=True)
+    found = _found(_driven(4, {"backlash": {"r_b": 0.005}}, duration=2.0), output=True)
     assert "backlash" in found.effects and found.play_share() == 0.05
     assert {t.effect for t in found.terms if "play(" in t.name} == {"backlash"}
     # the start values
@@ -197,7 +197,7 @@ def test_a_play_is_mapped_to_the_catalogued_backlash_and_refitted_first(monkeypa
     calls = []
     loop = close_loop(
         d.family_fits_[FAMILY], d.fit_data_, d.noise_std_, d.eq_data_, heldout=False,
-        library=lambda fit: calls.append(fit) or {"backlash": {"r_b": 0.004}},
+        max_nfev=15, library=lambda fit: calls.append(fit) or {"backlash": {"r_b": 0.004}},
     )  # fmt: skip
     assert len(calls) == 1
     (bl,) = [v for v in loop.tried if v.name == "backlash"]
