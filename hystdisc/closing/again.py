@@ -118,7 +118,7 @@ def compare_again(
         The data and the callbacks (:class:`~hystdisc.closing.reselect.Context`).
     seen : mapping of str to mapping, optional
         Effects stage 1 saw, each with the start values of its parameters: carried too
-        when the loop wanted and rejected them (:func:`absorbed`).
+        when the loop's refit of them failed only the held-out test (:func:`absorbed`).
 
     Returns
     -------

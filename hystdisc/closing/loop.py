@@ -409,7 +409,6 @@ def augment(
             if extra:
                 say(f"closing the loop: the open library points at {', '.join(extra)}")
                 forced, forced_values = tuple(extra), extra
-                rejected -= set(extra)
                 continue
         break
     out.fit = current
