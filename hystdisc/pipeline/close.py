@@ -90,6 +90,8 @@ def library_effects(state: State, fit: OEFit) -> dict[str, dict[str, float]]:
     lib = state.failures.guard("open library", open_library, state, fit)
     if lib is None:
         return {}
+    state.open_library = lib  # the final fit's, when the loop ends on ``fit``
+    state.open_library_of = fit
     out: dict[str, dict[str, float]] = {}
     share = lib.play_share()
     for name in lib.effects:
@@ -169,9 +171,12 @@ def close(state: State, fit_family: Callable) -> None:
     )
     state.final_fit = selected if state.loop is None else state.loop.fit
     if state.loop is not None and state.loop.unexplained:
-        state.open_library = state.failures.guard(
-            "open library", open_library, state, state.final_fit
-        )
+        if state.open_library_of is not state.final_fit:  # (the loop's last one is kept)
+            state.open_library = state.failures.guard(
+                "open library", open_library, state, state.final_fit
+            )
+    else:
+        state.open_library = None
     kept = [v.entry.name for v in state.measured if v.entry is not None]
     state.effects = kept + ([] if state.loop is None else list(state.loop.effects))
     final = state.final_fit

@@ -103,6 +103,7 @@ class State:
     final_admissibility: Any = None
     # what the open library finds in a residual the catalogue leaves (or None)
     open_library: ResidualTerms | None = None
+    open_library_of: OEFit | None = field(default=None, repr=False)  # the fit it regressed
     failed: dict[str, str] = field(default_factory=dict)
 
     def __post_init__(self) -> None:

@@ -123,9 +123,7 @@ class StageSections:
             )
         elif ran:
             self.p("No catalogued effect had enough evidence to be refitted.")
-        diag = d.diagnosis or []
-        names = {e.name for e in tried}
-        rest = [c for c in (diag[0].candidates if diag else []) if c.name not in names]
+        rest = d.not_refitted()
         weak = [c for c in rest if not c.not_refitted]
         if weak:
             self.p(

@@ -46,6 +46,7 @@ from hystdisc.results.record import Record, SchemaError, list_of, record_of, rou
 from hystdisc.results.records import (
     DiagnosisRound,
     DiscoveredResult,
+    EffectCandidate,
     EffectStep,
     EffectTrial,
     FamilyResult,
@@ -477,6 +478,13 @@ class Results(Record):
     def closed_loop(self) -> bool:
         """True when the closing loop ran (its keys are present)."""
         return self.diagnosis is not None or bool(self.effects_tried)
+
+    def not_refitted(self) -> list[EffectCandidate]:
+        """The first round's candidates that no round refitted; those whose evidence
+        called for a refit carry the reason in ``not_refitted``."""
+        names = {e.name for e in self.effects_tried or []}
+        diag = self.diagnosis or []
+        return [c for c in (diag[0].candidates if diag else []) if c.name not in names]
 
     # ----------------------------------------------------------------- text
     def family_table(self) -> str:

@@ -119,9 +119,7 @@ def effects_table(res: Results) -> list[str]:
     if not res.closed_loop:
         return []
     out = ["", "Closing the loop (residual -> catalogued effects):", *_trial_lines(res)]
-    names = {e.name for e in res.effects_tried or []}
-    diag = res.diagnosis or []
-    rest = [c for c in (diag[0].candidates if diag else []) if c.name not in names]
+    rest = res.not_refitted()
     weak = [c for c in rest if not c.not_refitted]
     if weak:
         out.append(
