@@ -480,8 +480,13 @@ class Results(Record):
         return self.diagnosis is not None or bool(self.effects_tried)
 
     def not_refitted(self) -> list[EffectCandidate]:
-        """The first round's candidates that no round refitted; those whose evidence
-        called for a refit carry the reason in ``not_refitted``."""
+        """The first round's candidates that no round refitted.
+
+        Returns
+        -------
+        list of EffectCandidate
+            Those whose evidence called for a refit carry the reason in ``not_refitted``.
+        """
         names = {e.name for e in self.effects_tried or []}
         diag = self.diagnosis or []
         return [c for c in (diag[0].candidates if diag else []) if c.name not in names]
