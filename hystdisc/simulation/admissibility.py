@@ -5,7 +5,8 @@ energy outside the training data (a negative velocity-squared term makes the for
 and reverse beyond the velocities it was fitted on). :func:`check_admissible` drives
 the damper model through closed sine cycles over a grid that covers twice the training
 envelope in displacement and velocity, at currents across the training range, and
-reports every cycle in which the damper does net work on the rig (``∮ T dθ < 0``), and
+reports every cycle in which the damper does net work on the rig (``∮ T dθ < 0``) or
+its simulation diverges, and
 every angle where the rig's spring (``k_s θ`` plus a cubic term) would soften below zero
 stiffness.
 
@@ -184,10 +185,12 @@ def check_admissible(
     if worst is not None:
         work, a, v, c = worst
         out.worst_work = work
-        out.violations.insert(
-            0,
-            f"the damper generates energy in a cycle of amplitude {a * a_max:.3g} at peak "
-            f"velocity {v * v_max:.3g} ({v:g}x the training velocity), current {c:.3g} A",
+        where = (
+            f"a cycle of amplitude {a * a_max:.3g} at peak velocity {v * v_max:.3g} "
+            f"({v:g}x the training velocity), current {c:.3g} A"
         )
+        # a cycle whose simulation failed did no measurable work: it is said as such
+        what = "the damper generates energy in" if np.isfinite(work) else "the damper diverges in"
+        out.violations.insert(0, f"{what} {where}")
     out.ok = not out.violations
     return out

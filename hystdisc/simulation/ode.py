@@ -5,7 +5,9 @@
 Dormand–Prince 5(4) pair and error control: steps end on every sample, the exogenous
 inputs are linear between samples, and a step that crosses a kink of the rate (a
 velocity reversal, ``|z|^n`` at zero) is rejected and retried smaller, so the error stays
-within the tolerances there too. numba compiles the integrator once per model class and caches it on disk
+within the tolerances there too; so is a trial step whose stages leave the finite numbers
+(a long step past a sharp yield overflows ``|z|^n``). A run fails only when its step
+budget is spent. numba compiles the integrator once per model class and caches it on disk
 (:mod:`hystdisc.simulation.specialize`).
 
 The seed's families have their own fixed-step kernels (:mod:`hystdisc.simulation.kernels`),
@@ -79,6 +81,21 @@ def over_budget(steps, total, k, max_steps):
     """The step budget is spent: ``steps`` in interval ``k`` beyond :data:`BURST` times
     ``max_steps``, or ``total`` steps beyond ``max_steps`` per interval so far."""
     return steps > BURST * max_steps or total > max_steps * (k + 1)
+
+
+@numba.njit(cache=True, inline="always")
+def finite_error(err, x5):
+    """``err``, or infinity when the trial step left the finite numbers (its error estimate
+    or its solution is not finite): a step too long for a fast or stiff state (a
+    Bouc-Wen ``z`` driven past saturation by a long trial step overflows ``|z|^n``) is
+    rejected and retried shorter like any other, and a run that truly diverges ends by
+    the step budget (:func:`over_budget`)."""
+    if not np.isfinite(err):
+        return np.inf
+    for i in range(x5.shape[0]):
+        if not np.isfinite(x5[i]):
+            return np.inf
+    return err
 
 
 @numba.njit(cache=True, inline="always")
@@ -164,10 +181,10 @@ def _integrate(x0, t, U, p, rtol, atol, X, Y, max_steps):
             hh = min(h, span - tt)
             cut = hh < h
             stages(x, U, k, tt, span, hh, p, ks, xt, u, x5)
-            err = step_error(x, x5, U, k, tt, span, hh, p, ks, u, rtol, atol)
+            err = finite_error(step_error(x, x5, U, k, tt, span, hh, p, ks, u, rtol, atol), x5)
             steps += 1
             total += 1
-            if not np.isfinite(err) or over_budget(steps, total, k, max_steps):
+            if over_budget(steps, total, k, max_steps):
                 return 1
             if err <= 1.0:
                 tt += hh
@@ -209,10 +226,12 @@ def _integrate_lockstep(X0, t, U, P, rtol, atol, Y, max_steps):
             hh = min(h, span - tt)
             cut = hh < h
             stages(x[0], U, k, tt, span, hh, P[0], ks, xt, u, x5)
-            err = step_error(x[0], x5, U, k, tt, span, hh, P[0], ks, u, rtol, atol)
+            err = finite_error(
+                step_error(x[0], x5, U, k, tt, span, hh, P[0], ks, u, rtol, atol), x5
+            )
             steps += 1
             total += 1
-            if not np.isfinite(err) or over_budget(steps, total, k, max_steps):
+            if over_budget(steps, total, k, max_steps):
                 return 1
             if err <= 1.0:
                 x[0] = x5

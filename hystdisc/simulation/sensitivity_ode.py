@@ -54,6 +54,7 @@ from hystdisc.simulation.ode import (
     RTOL,
     B,
     C,
+    finite_error,
     input_at,
     input_matrix,
     next_step,
@@ -186,10 +187,10 @@ def _integrate_sens(x0, S0, t, U, p, act, need, rtol, atol, Y, dY, max_steps):
             hh = min(h, span - tt)
             cut = hh < h
             stages(x, U, k, tt, span, hh, p, ks, xt, u, x5)
-            err = step_error(x, x5, U, k, tt, span, hh, p, ks, u, rtol, atol)
+            err = finite_error(step_error(x, x5, U, k, tt, span, hh, p, ks, u, rtol, atol), x5)
             steps += 1
             total += 1
-            if not np.isfinite(err) or over_budget(steps, total, k, max_steps):
+            if over_budget(steps, total, k, max_steps):
                 return 1
             if err <= 1.0:
                 _sens_step(x, S, U, k, tt, span, hh, p, act, need, ks, xt, u, dk, dX, jx, jp, work)
