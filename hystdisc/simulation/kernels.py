@@ -32,7 +32,10 @@ MAX_SUBSTEPS = 500
 @numba.njit(cache=True)
 def n_sub(c, b, n, J, th, w, z, h, eps, mech, u, ratio, min_sub, max_sub):
     dgdz, dgdw = rate_stiffness(b, n, w, z)
-    lam = dgdz  # already carries the |theta_dot| factor
+    # already carries the |theta_dot| factor; and a sub-step moves z by at most ``ratio`` of
+    # its saturated scale (1, or |z| beyond it): dg/dz vanishes at z = 0 (n > 1), where a
+    # sharp yield (A |theta_dot| h >> 1) carries z from 0 to saturation within one sample
+    lam = max(dgdz, abs(term_rate(b, n, w, z)) / max(abs(z), 1.0))
     if mech:
         # the smoothed sign is stiff near w = 0: use the smallest |w| the interval may reach
         sech2 = 0.0
