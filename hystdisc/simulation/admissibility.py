@@ -6,9 +6,8 @@ and reverse beyond the velocities it was fitted on). :func:`check_admissible` dr
 the damper model through closed sine cycles over a grid that covers twice the training
 envelope in displacement and velocity, at currents across the training range, and
 reports every cycle in which the damper does net work on the rig (``∮ T dθ < 0``) or
-its simulation diverges, and
-every angle where the rig's spring (``k_s θ`` plus a cubic term) would soften below zero
-stiffness.
+its simulation diverges, and every angle where the rig's spring (``k_s θ`` plus a cubic
+term) would soften below zero stiffness.
 
 Examples
 --------

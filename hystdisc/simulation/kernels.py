@@ -3,11 +3,11 @@
 Classical RK4 on the sample grid with a number of sub-steps chosen per sample interval
 from the local stiffness of the state (``|theta'| dg/dz`` for the hysteretic state, or
 its rate over its saturated scale where that is larger: a sub-step moves ``z`` by at
-most ``STEP_RATIO`` of it; damping and spring rates for the mechanics), compiled with numba and batched over runs;
-the kernels release the GIL, so independent fits can run on threads. The batch kernels
-take runs concatenated with ``offsets``, one model (row of ``coef``, ``bb``) and one
-sub-step cap (``max_sub``) per run. The rate and torque equations are the models layer's
-(:mod:`hystdisc.models.compiled`).
+most ``STEP_RATIO`` of it; damping and spring rates for the mechanics), compiled with
+numba and batched over runs; the kernels release the GIL, so independent fits can run on
+threads. The batch kernels take runs concatenated with ``offsets``, one model (row of
+``coef``, ``bb``) and one sub-step cap (``max_sub``) per run. The rate and torque
+equations are the models layer's (:mod:`hystdisc.models.compiled`).
 """
 
 from __future__ import annotations
