@@ -113,7 +113,7 @@ def fit_intervals(
         B = quantization_information_by_dwell(J, measured + res, data.quantum, sizes)
         cov = s2 * ainv @ B @ ainv
     # errors in the imposed motion: the force noise's part plus the motion's
-    motion = motion_covariance(data, par, x, nu, J, gram, ainv, row_offsets)
+    motion = motion_covariance(data, par, x, nu, J, gram, ainv, row_offsets, cov, rss)
     if motion is not None:
         cov = cov * motion.force_scale(rss) + motion.cov
     covx = cov[:npar, :npar]

@@ -145,6 +145,13 @@ class MotionEstimate:
             self._modes = out
         return out
 
+    @property
+    def drawn(self) -> bool:
+        """True when :meth:`modes` are random noise draws (exchangeable: any subset of
+        ``m`` of them, scaled by ``MOTION_DRAWS / m``, estimates the same covariance),
+        False for the exact modes of a harmonic series."""
+        return not (self.method == "harmonic" and self.harmonic is not None)
+
     def summary(self) -> dict:
         """``estimate`` and, when a harmonic fit was tried, its ``harmonics``, ``frequency``
         and ``residual``; ``note`` when the series was not used (``results.json``)."""

@@ -236,3 +236,47 @@ def test_a_filtered_motion_is_the_filters_reconstruction():
     assert fd.motion_errors[8].modes()[1].shape == (2000, 0)
     assert all("not propagated" in e["note"] for e in fd.motion_noise.estimates.values())
     assert np.array_equal(fd.theta_dot[8], fd.motion_errors[8].theta_dot)
+
+
+def _dahl_errors(monkeypatch, theta_noise: float, force_noise: float, pilot: int):
+    """The declared Dahl fit of a ramped (local-fit) set: its standard errors and what
+    the motion covariance reported, with ``pilot`` draws propagated first."""
+    import hystdisc.fitting.intervals as intervals
+    import hystdisc.fitting.motion_error as motion_error
+
+    monkeypatch.setattr(motion_error, "PILOT_DRAWS", pilot)
+    seen = []
+
+    def spy(*args, **kwargs):
+        out = motion_error.motion_covariance(*args, **kwargs)
+        seen.append(out)
+        return out
+
+    monkeypatch.setattr(intervals, "motion_covariance", spy)
+    ds = ramped(Model("dahl", DAHL), theta_noise, force_noise, seed=5)
+    with threadpool_limits(limits=1):
+        _, fd, _, _ = prepare_data(ds)
+        fit = OutputErrorFitter(fd, FamilyParametrization("dahl", "driven", DAHL)).fit(
+            heldout=False
+        )
+    return np.array([fit.stderr[k] for k in DAHL]), seen[-1]
+
+
+def test_negligible_motion_errors_are_settled_by_the_pilot_draws(monkeypatch):
+    """Motion noise 1e-7 rad under force noise 0.03: ten draws of each run show that the
+    motion's part is negligible and the other 90 are not simulated; the standard errors
+    are those of all 100 draws to 1e-4."""
+    full, every = _dahl_errors(monkeypatch, 1e-7, 0.03, pilot=100)
+    fast, pilot = _dahl_errors(monkeypatch, 1e-7, 0.03, pilot=10)
+    assert every.modes == 900  # (the pilot is every draw)
+    assert pilot.pilot and pilot.modes == 90
+    assert np.max(np.abs(fast / full - 1)) < 1e-4
+
+
+def test_motion_errors_that_matter_are_propagated_in_full(monkeypatch):
+    """Motion noise 1e-3 rad under force noise 1e-4 (the motion dominates): the pilot is
+    not decisive, every draw is propagated and the intervals are the same to the bit."""
+    full, every = _dahl_errors(monkeypatch, 1e-3, 1e-4, pilot=100)
+    fast, pilot = _dahl_errors(monkeypatch, 1e-3, 1e-4, pilot=10)
+    assert not pilot.pilot and pilot.modes == every.modes == 900
+    assert np.array_equal(fast, full)
