@@ -215,8 +215,8 @@ def augment(
     **physically admissible** (it dissipates energy and its spring stiffens over twice the
     training envelope: :func:`~hystdisc.simulation.admissibility.check_admissible`). An
     effect the data want with a sign outside its admissible bounds (a negative quadratic
-    damping) is not refitted but reported with what it points at (its
-    :attr:`~hystdisc.models.Effect.hint`). A refit that lowers BIC while the effect's
+    damping, by the one-step estimate) is refitted within its bounds, and when rejected
+    is reported with what that sign points at (its :attr:`~hystdisc.models.Effect.hint`). A refit that lowers BIC while the effect's
     parameter is not significant has found a better optimum of the model itself: the model
     is refitted without the effect from there and kept, and the effect is rejected.
 

@@ -322,10 +322,11 @@ class EffectTrial(Record):
         the refit failed another test (BIC, significance, admissibility):
         its held-out error is computed only when it could decide the verdict.
     admissible : bool or None
-        The refit is physically admissible (False also for an effect the data want with a
-        non-physical sign, which is not refitted).
+        The refit is physically admissible (an effect the data want with a non-physical
+        sign is refitted within its bounds: this judges that refit).
     points_at : str or None
-        For such an effect: the physics its sign points at.
+        For an effect the data want with a non-physical sign: the physics that sign
+        points at.
     wald_chi2 : float or None
         Squared z-score of the effect's parameters in the refit.
     converged : bool
