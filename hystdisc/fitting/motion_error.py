@@ -108,8 +108,9 @@ def motion_covariance(
     row_offsets : ndarray
         Where each run's rows start in the residual.
     force_cov : ndarray, optional
-        The force noise's covariance of the fit's vector, and ``rss`` the residual sum of
-        squares: with both, random draws are propagated in a pilot first (see the module).
+        The fit vector's covariance from the residual alone (before the motion's part is
+        taken out of it), and ``rss`` the residual sum of squares: with both, random draws
+        are propagated in a pilot first (see the module).
         Without them, every mode is.
     rss : float, optional
         See ``force_cov``.
@@ -134,7 +135,8 @@ def motion_covariance(
         if dth.shape[1] > 0:
             todo.append((r, dth, dw, bool(est.drawn)))
 
-    done: dict[tuple[int, int], tuple[np.ndarray, float]] = {}  # (run, mode) -> dv, rss
+    # each run's propagated modes, in mode order: (dv, its part of the RSS)
+    done: dict[int, list[tuple[np.ndarray, float]]] = {r: [] for r, *_ in todo}
 
     def propagate(r, dth, dw, cols) -> None:
         """Run ``r``'s modes ``cols`` through the model, into ``done``."""
@@ -159,17 +161,15 @@ def motion_covariance(
                 if not diverged:
                     dF = (pred - base[r])[mask] / step[j]
                     dv = -ainv @ (Jr.T @ dF)
-                    done[r, j] = dv, float(dF @ dF - dv @ gram @ dv)
+                    done[r].append((dv, float(dF @ dF - dv @ gram @ dv)))
 
     def total(scaled: bool) -> tuple[np.ndarray, float]:
         """The modes in ``done`` summed in run and mode order; ``scaled``: each run's
         draws scaled up to all of its modes (the pilot's prediction)."""
         cov, rss_m = np.zeros((k, k)), 0.0
         for r, dth, _, drawn in todo:
-            keys = [key for key in done if key[0] == r]
-            w = dth.shape[1] / len(keys) if scaled and drawn and keys else 1.0
-            for key in sorted(keys):
-                dv, q = done[key]
+            w = dth.shape[1] / len(done[r]) if scaled and drawn and done[r] else 1.0
+            for dv, q in done[r]:
                 cov += w * np.outer(dv, dv)
                 rss_m += w * q
         return cov, rss_m
@@ -178,7 +178,8 @@ def motion_covariance(
     for r, dth, dw, drawn in todo:
         m = dth.shape[1]
         propagate(r, dth, dw, range(min(PILOT_DRAWS, m) if pilot and drawn else m))
-    if pilot and done:
+    count = sum(map(len, done.values()))
+    if pilot and count:
         est_cov, est_rss = total(scaled=True)
         fvar = np.diag(force_cov)
         if (
@@ -186,11 +187,12 @@ def motion_covariance(
             and np.all(np.abs(np.diag(est_cov)) <= NEGLIGIBLE * fvar)
             and abs(est_rss) <= NEGLIGIBLE * rss
         ):
-            return MotionCovariance(est_cov, max(est_rss, 0.0), len(done), pilot=True)
+            return MotionCovariance(est_cov, max(est_rss, 0.0), count, pilot=True)
         for r, dth, dw, drawn in todo:  # not decisive: every other draw
             if drawn and dth.shape[1] > PILOT_DRAWS:
                 propagate(r, dth, dw, range(PILOT_DRAWS, dth.shape[1]))
-    if not done:
+    count = sum(map(len, done.values()))
+    if count == 0:
         return None
     cov, rss_m = total(scaled=False)
-    return MotionCovariance(cov, max(rss_m, 0.0), len(done))
+    return MotionCovariance(cov, max(rss_m, 0.0), count)
