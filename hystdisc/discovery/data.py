@@ -7,7 +7,9 @@ experiment, the input of a forced one) and the rows where the equation is evalua
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import threading
+from collections import OrderedDict
+from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
@@ -16,6 +18,10 @@ from hystdisc.models import SIGN_EPS
 from hystdisc.models.shapes import HysteresisShape
 from hystdisc.registry import get_experiment
 from hystdisc.simulation import concat_runs, integrate_z_flat
+
+#: Bytes of ``z`` trajectories :meth:`EqData.z_flat` keeps for shape constants it may be
+#: asked for again (the shape grids, a search's start simplex, clipped corners).
+Z_MEMO_BYTES = 256 * 2**20
 
 
 @dataclass
@@ -58,6 +64,20 @@ class EqData:
     rows: list[np.ndarray]  # boolean masks of rows used
     window: int = 1
     scale: float = 1.0  # displacement amplitude
+    _z_memo: OrderedDict = field(default_factory=OrderedDict, init=False, repr=False, compare=False)
+    _z_lock: threading.Lock = field(
+        default_factory=threading.Lock, init=False, repr=False, compare=False
+    )
+
+    def __getstate__(self) -> dict:
+        state = dict(self.__dict__)
+        del state["_z_lock"]
+        state["_z_memo"] = OrderedDict()  # recomputed where it is needed, not shipped
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self._z_lock = threading.Lock()
 
     @property
     def experiment_type(self):
@@ -84,12 +104,30 @@ class EqData:
         )
 
     def z_flat(self, shape: HysteresisShape, s) -> np.ndarray:
-        """z of every run for the shape constants ``s``, all runs concatenated."""
+        """z of every run for the shape constants ``s``, all runs concatenated (read-only).
+
+        The stage-1 searches ask for the same constants again and again (every augmented
+        structure of the closing loop searches the same shape grid from the same start),
+        so the last :data:`Z_MEMO_BYTES` of trajectories are kept: the same constants give
+        the same array, bit for bit, without integrating again.
+        """
         t, w, offsets = self._flat
         if not shape.has_state:
             return np.zeros_like(t)
         b, n = shape.vector(s)
-        return integrate_z_flat(b, n, t, w, offsets, SIGN_EPS)
+        key = (b.tobytes(), float(n))  # z depends on the rate coefficients alone
+        with self._z_lock:
+            z = self._z_memo.get(key)
+            if z is not None:
+                self._z_memo.move_to_end(key)
+                return z
+        z = integrate_z_flat(b, n, t, w, offsets, SIGN_EPS)
+        z.flags.writeable = False
+        with self._z_lock:
+            self._z_memo[key] = z
+            while len(self._z_memo) * z.nbytes > Z_MEMO_BYTES and len(self._z_memo) > 1:
+                self._z_memo.popitem(last=False)
+        return z
 
     def z_list(self, shape: HysteresisShape, s) -> list[np.ndarray]:
         """z of every run for the shape constants ``s`` (zeros for a shape without state)."""
