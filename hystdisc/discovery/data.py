@@ -129,6 +129,10 @@ class EqData:
                 self._z_memo.popitem(last=False)
         return z
 
+    def memo_size(self) -> int:
+        """Number of ``z`` trajectories :meth:`z_flat` keeps now."""
+        return len(self._z_memo)
+
     def z_list(self, shape: HysteresisShape, s) -> list[np.ndarray]:
         """z of every run for the shape constants ``s`` (zeros for a shape without state)."""
         z = self.z_flat(shape, s)
