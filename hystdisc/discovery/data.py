@@ -133,6 +133,11 @@ class EqData:
         """Number of ``z`` trajectories :meth:`z_flat` keeps now."""
         return len(self._z_memo)
 
+    def forget(self) -> None:
+        """Drop the kept ``z`` trajectories (a finished discovery keeps its data, not them)."""
+        with self._z_lock:
+            self._z_memo.clear()
+
     def z_list(self, shape: HysteresisShape, s) -> list[np.ndarray]:
         """z of every run for the shape constants ``s`` (zeros for a shape without state)."""
         z = self.z_flat(shape, s)

@@ -123,5 +123,7 @@ def run(
             close(state, lambda data, family: fit_family(data, options, family))
         finally:
             state.tasks = ThreadTasks(options.n_jobs)  # no client kept past its close
+            if state.eq_data is not None:  # the fitted estimator keeps the data, not the memo
+                state.eq_data.forget()
     state.failed = state.failures.items()
     return state

@@ -72,3 +72,14 @@ def test_the_memo_stays_within_its_budget_and_is_not_pickled(monkeypatch):
     np.testing.assert_array_equal(
         copy.z_flat(SHAPES["dahl"], np.array([5.0])), eq.z_flat(SHAPES["dahl"], np.array([5.0]))
     )
+
+
+def test_a_fitted_discovery_keeps_its_data_but_not_the_memo():
+    from pathlib import Path
+
+    import hystdisc
+
+    csv = Path(__file__).resolve().parents[2] / "data_synth" / "bouc-wen.csv"
+    disc = hystdisc.Discovery(close_loop=False, heldout=False).fit(hystdisc.load(str(csv)))
+    assert disc.eq_data_.t  # the equation-error data stay with the estimator
+    assert disc.eq_data_.memo_size() == 0
