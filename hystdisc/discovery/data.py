@@ -70,14 +70,11 @@ class EqData:
     )
 
     def __getstate__(self) -> dict:
-        state = dict(self.__dict__)
-        del state["_z_lock"]
-        state["_z_memo"] = OrderedDict()  # recomputed where it is needed, not shipped
-        return state
+        # the memo is recomputed where it is needed, not shipped; a lock cannot be
+        return {k: v for k, v in self.__dict__.items() if k not in ("_z_memo", "_z_lock")}
 
     def __setstate__(self, state: dict) -> None:
-        self.__dict__.update(state)
-        self._z_lock = threading.Lock()
+        self.__dict__.update(state, _z_memo=OrderedDict(), _z_lock=threading.Lock())
 
     @property
     def experiment_type(self):

@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import pickle
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+import hystdisc
 import hystdisc.discovery.data as eqdata
 from hystdisc.discovery import EqData, family_start
 from hystdisc.models.shapes import SHAPES
@@ -75,10 +77,6 @@ def test_the_memo_stays_within_its_budget_and_is_not_pickled(monkeypatch):
 
 
 def test_a_fitted_discovery_keeps_its_data_but_not_the_memo():
-    from pathlib import Path
-
-    import hystdisc
-
     csv = Path(__file__).resolve().parents[2] / "data_synth" / "bouc-wen.csv"
     disc = hystdisc.Discovery(close_loop=False, heldout=False).fit(hystdisc.load(str(csv)))
     assert disc.eq_data_.t  # the equation-error data stay with the estimator
