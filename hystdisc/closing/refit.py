@@ -27,6 +27,9 @@ from hystdisc.stats import bic_change
 #: within which :mod:`hystdisc.pipeline.close` calls two families equal fits,
 #: ``EQUAL_FIT_BIC``), and refitted only when the score test predicts such a drop.
 EFFECT_BIC_MARGIN = 6.0
+#: Prefixes of the torque terms that carry a current law of a term group (``i*z``,
+#: ``i^2*theta_dot``): a state-space family's own laws stand for these.
+LAW_PREFIXES = ("i*", "i^2*")
 
 
 @dataclass(frozen=True)
@@ -106,7 +109,9 @@ def candidate_effects(fit: OEFit, data: FitData) -> tuple[list[str], list[Effect
         reason = None
         if name in par.effects:
             continue
-        if system and (eff.structural or any(t.startswith("i") for t in eff.terms)):
+        # a state-space family's own laws make its damping and yield depend on the
+        # current; a force bias's law (current_bias: the term ``i``) is no law of its own
+        if system and (eff.structural or any(t.startswith(LAW_PREFIXES) for t in eff.terms)):
             reason = f"{fam.name} is a state-space family: " + (
                 "its structural form is not built"
                 if eff.structural
