@@ -20,16 +20,13 @@ from hystdisc.discovery import family_start
 from hystdisc.fitting import OEFit, OutputErrorFitter
 from hystdisc.fitting.multistart import screen_start
 from hystdisc.measurement import FitData
-from hystdisc.models import EFFECTS, Z_TORQUE_TERMS
+from hystdisc.models import EFFECTS, LAW_PREFIXES, Z_TORQUE_TERMS
 from hystdisc.stats import bic_change
 
 #: An effect is accepted only when its refit lowers BIC by more than this (the margin
 #: within which :mod:`hystdisc.pipeline.close` calls two families equal fits,
 #: ``EQUAL_FIT_BIC``), and refitted only when the score test predicts such a drop.
 EFFECT_BIC_MARGIN = 6.0
-#: Prefixes of the torque terms that carry a current law of a term group (``i*z``,
-#: ``i^2*theta_dot``): a state-space family's own laws stand for these.
-LAW_PREFIXES = ("i*", "i^2*")
 
 
 @dataclass(frozen=True)

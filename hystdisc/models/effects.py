@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from hystdisc.models.params import BIG, Param
-from hystdisc.models.terms import SHEAR_M0, SHEAR_TERM, TermModel
+from hystdisc.models.terms import LAW_PREFIXES, SHEAR_M0, SHEAR_TERM, TermModel
 
 
 @dataclass(frozen=True)
@@ -192,7 +192,7 @@ class Effect:
             tm.torque[k] = tm.torque.get(k, 0.0) + v
         for name, term, base in self.scaled:
             share = float(values[name])
-            for law in ("", "i*", "i^2*"):
+            for law in ("", *LAW_PREFIXES):
                 if law + base in tm.torque:
                     a = share * tm.torque[law + base]
                     tm.torque[law + term] = tm.torque.get(law + term, 0.0) + a

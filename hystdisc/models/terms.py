@@ -126,6 +126,9 @@ EVEN_Z_TORQUE_TERMS = ("|z|", "i*|z|", "i^2*|z|")
 #: current law's slope. A term model's :attr:`TermModel.saturation` maps a group to the
 #: saturation current ``i0`` of its law.
 LAW_GROUPS = ("z", "theta_dot", "sign(theta_dot)", "|theta_dot|", "|z|")
+#: Prefixes of a group's current-law terms: ``i*<group>`` (the slope) and ``i^2*<group>``
+#: (a quadratic law's curvature).
+LAW_PREFIXES = ("i*", "i^2*")
 
 
 def effective_current(i, i0: float | None = None):
