@@ -517,6 +517,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-run", action="store_true", help="re-render the markdown from the JSON")
     args = ap.parse_args(argv)
     out = Path(args.out)
+    if out.suffix != ".md":  # the JSON is written beside it, under the same stem
+        ap.error(f"--out {out}: name the markdown file (.md); its .json is written beside it")
     jpath = out.with_suffix(".json")
     t0 = time.time()
     if args.no_run:

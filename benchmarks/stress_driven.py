@@ -968,6 +968,8 @@ def main(argv: list[str] | None = None) -> int:
             plot_loops(f, [0, 1, 2], out.with_name(f"{out.stem}_{f}{out.suffix}"))
         return 0
     out = Path(args.out)
+    if out.suffix != ".md":  # the JSON is written beside it, under the same stem
+        ap.error(f"--out {out}: name the markdown file (.md); its .json is written beside it")
     jpath = out.with_suffix(".json")
     t0 = time.time()
     if args.no_run:

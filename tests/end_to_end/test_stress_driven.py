@@ -51,6 +51,22 @@ def test_sampler_is_deterministic_inside_its_bounds_and_holds_back_the_acceptanc
     assert not list(tmp_path.iterdir())
 
 
+def test_out_names_the_markdown_and_a_json_name_is_refused(tmp_path, capsys):
+    """``--out X.json`` once wrote the markdown over the JSON beside it (the same name)."""
+    import stress
+
+    for suite in (sd.main, stress.main):
+        with pytest.raises(SystemExit) as exit_:
+            suite(["--sets", "1", "--out", str(tmp_path / "x.json")])
+        assert exit_.value.code == 2
+        err = capsys.readouterr().err.strip().splitlines()[-1]
+        assert err.endswith(
+            f"--out {tmp_path / 'x.json'}: name the markdown file (.md); its .json is written "
+            "beside it"
+        )
+    assert not list(tmp_path.iterdir())
+
+
 def test_a_set_that_generates_energy_is_rejected(monkeypatch):
     p = {"c_a": 1.0, "c_b": 0.0, "f_a": 0.0, "f_b": 0.0, "k_s": 1.0}
     assert sd.driven_check("bingham", p) == ("", pytest.approx(0.8654, abs=1e-4))
