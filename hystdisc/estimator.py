@@ -101,6 +101,12 @@ class Discovery(BaseEstimator):
         How the output-error fits compute their Jacobian: the simulators' exact
         sensitivities where they have them, else forward differences (the default); see
         :data:`~hystdisc.fitting.jacobian.JACOBIAN_MODES` for the others.
+    detect_filter : bool
+        Driven data that declare no filter (no rig file's ``[filter]``): look in the
+        records for a causal moving average they went through (its notches,
+        :mod:`hystdisc.data.filters`) and, when one is read, fit the model through it as
+        through a declared one (``prefilter_``; a warning says so). False: the records
+        are taken as unfiltered.
     scheduler : str or distributed.Client, optional
         Run this discovery's independent tasks (stage-1 shapes, every family's first fit,
         its starts and held-out folds, the families refitted with a measurement effect or
@@ -121,6 +127,9 @@ class Discovery(BaseEstimator):
         The experiment type the data were read as.
     noise_std_ : float
         Estimated measurement noise of the output (data units): ``noise_.std``.
+    prefilter_ : FilterFound or None
+        The moving average read in the records and fitted through (``detect_filter``);
+        None when the data declare their filter, none was read, or it was not looked for.
     noise_ : NoiseEstimate
         How it was estimated (period-to-period differences, high-order differences or the
         quantization floor), each run's estimates, the encoder of the angle
@@ -235,6 +244,7 @@ class Discovery(BaseEstimator):
         staged: bool = False,
         n_starts: int = 4,
         jacobian: str = "exact",
+        detect_filter: bool = True,
         scheduler: Any = None,
     ) -> None:
         self.experiment = experiment
@@ -255,6 +265,7 @@ class Discovery(BaseEstimator):
         self.n_starts = n_starts
         self.staged = staged
         self.jacobian = jacobian
+        self.detect_filter = detect_filter
         self.scheduler = scheduler
 
     # -- public API
@@ -321,7 +332,9 @@ class Discovery(BaseEstimator):
 
         self._check_fitted()
         fit = self.final_fit_ if family is None else self.family_fits_[family or self.family_]
-        preds = predict_dataset(fit.model, dataset, self.experiment_, self.input_hold)
+        preds = predict_dataset(
+            fit.model, dataset, self.experiment_, self.input_hold, self.detect_filter
+        )
         return label_predictions(dataset, preds)
 
     def score(self, dataset: Dataset) -> float:

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from hystdisc.data import Dataset, estimate_noise, filter_windows
+from hystdisc.data import Dataset, estimate_noise, filter_windows, with_detected_filter
 from hystdisc.data.envelope import Envelope, RunEnvelope
 from hystdisc.discovery.differentiation import differentiate
 from hystdisc.measurement.chain import measured_output, seen_motion, unfiltered_motion
@@ -107,12 +107,18 @@ def signals(dataset: Dataset, exp) -> list:
 
 
 def predict_dataset(
-    tm, dataset: Dataset, experiment: str | None = None, input_hold: str = "cubic"
+    tm,
+    dataset: Dataset,
+    experiment: str | None = None,
+    input_hold: str = "cubic",
+    detect_filter: bool = True,
 ) -> list[np.ndarray]:
     """Predicted measured signal (theta, or torque for driven) of every run of ``dataset``.
 
     ``tm`` is a model in term form, or a state-space model with its parameter values (a
-    system family's fit: ``OEFit.model``).
+    system family's fit: ``OEFit.model``). Driven records that declare no filter but went
+    through a moving average are predicted through it (``detect_filter``:
+    :func:`~hystdisc.data.with_detected_filter`), as the fit saw its own.
 
     Examples
     --------
@@ -124,6 +130,8 @@ def predict_dataset(
     True
     """
     exp = get_experiment(experiment or dataset.experiment)
+    if detect_filter:
+        dataset = with_detected_filter(dataset)[0]
     runs = list(dataset.runs)
     ders = signals(dataset, exp)
     chans = tuple(dataset.filter["channels"]) if dataset.filter else ()

@@ -191,6 +191,13 @@ def add_discovery_options(p: argparse.ArgumentParser) -> None:
         "force; zoh: a DAC output held between samples)",
     )
     p.add_argument(
+        "--no-detect-filter",
+        action="store_true",
+        help="driven data without a rig file's [filter]: do not look in the records for a "
+        "moving average they went through (by default one that is read there, by its "
+        "notches, is fitted through as a declared one, and a warning says so)",
+    )
+    p.add_argument(
         "--no-effects",
         action="store_true",
         help="skip the closing loop (residual -> catalogued effects)",
@@ -222,6 +229,7 @@ def discovery_options(args: argparse.Namespace) -> dict:
         "single_current": args.single_current,
         "staged": getattr(args, "staged", False),
         "n_starts": getattr(args, "starts", 4),
+        "detect_filter": not getattr(args, "no_detect_filter", False),
     }
 
 

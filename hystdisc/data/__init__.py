@@ -29,6 +29,8 @@ The modules, one job each:
 ``table``           :func:`read_table`
 ``mat``             :func:`read_mat` and the forked probe of damaged files
 ``rigs``            :func:`read_rig`, :func:`filter_windows`
+``filters``         :func:`detect_filter`, :func:`with_detected_filter`: a moving
+                    average read in the records themselves
 ``loading``         :func:`load`
 ``validation``      :func:`validate` and the checks of the motion
 ``plausibility``    :func:`implausible_units`: magnitudes that do not fit a unit
@@ -53,6 +55,7 @@ Examples
 from hystdisc.data.columns import DATA_SUFFIXES, DEFAULT_CURRENT_PATTERN, current_from_name
 from hystdisc.data.csvfile import read_csv
 from hystdisc.data.dataset import CANONICAL_COLUMNS, EXPERIMENTS, Dataset, Run, distinct_currents
+from hystdisc.data.filters import FilterFound, detect_filter, with_detected_filter
 from hystdisc.data.loading import load
 from hystdisc.data.mat import read_mat
 from hystdisc.data.noise import NoiseEstimate, detect_period, measurement_noise, period_noise
@@ -83,6 +86,8 @@ __all__ = [
     "atomic_write_bytes",
     "atomic_write_text",
     "current_from_name",
+    "FilterFound",
+    "detect_filter",
     "detect_period",
     "detect_quantization",
     "distinct_currents",
@@ -97,6 +102,7 @@ __all__ = [
     "read_rig",
     "read_table",
     "trim_release",
+    "with_detected_filter",
     "unit_factor",
     "validate",
     "write_csv",

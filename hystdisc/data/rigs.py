@@ -256,7 +256,9 @@ def filter_windows(filt: Mapping[str, Any], runs: Sequence[Run], source: str = "
 
     ``window`` is used as it is; ``period_fraction`` gives
     ``round(period_fraction / (Ts * f))`` samples, ``f`` the frequency of the run's motion
-    (from its crossings of its mean level) and ``Ts`` its sampling interval.
+    (from its crossings of its mean level) and ``Ts`` its sampling interval. A filter read
+    in the records (:meth:`hystdisc.data.filters.FilterFound.table`) gives each run's
+    window in ``windows`` (0 for a run absent from it: not filtered).
 
     Examples
     --------
@@ -267,6 +269,9 @@ def filter_windows(filt: Mapping[str, Any], runs: Sequence[Run], source: str = "
     """
     out = []
     for r in runs:
+        if filt.get("windows") is not None:  # read in the records (a run absent: none)
+            out.append(int(filt["windows"].get(r.name, 0)))
+            continue
         if filt.get("window") is not None:
             out.append(int(filt["window"]))
             continue

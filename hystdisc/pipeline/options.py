@@ -70,6 +70,7 @@ class Options:
     staged: bool = False
     n_starts: int = 4
     jacobian: str = "exact"
+    detect_filter: bool = True
     # the pipeline's own (not parameters of Discovery)
     integration: Integration = field(default_factory=Integration)
     motion: str = "auto"

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import warnings
 
-from hystdisc.data import Dataset, distinct_currents, validate
+from hystdisc.data import Dataset, distinct_currents, validate, with_detected_filter
 from hystdisc.errors import HystdiscError, HystdiscWarning
 from hystdisc.fitting.jacobian import check_jacobian_mode
 from hystdisc.measurement.motion import MOTION_MODES
@@ -26,6 +26,25 @@ def prepare(state: State) -> None:
         raise TypeError("Discovery.fit expects a hystdisc.data.Dataset (see hystdisc.load)")
     families = opts.family_list()
     validate(dataset, need_currents=1)
+    if opts.detect_filter:
+        # a moving average the records went through, read in them when none is declared
+        dataset, state.prefilter = with_detected_filter(dataset)
+        if state.prefilter is not None:
+            state.dataset = dataset
+            found = state.prefilter
+            rest = (
+                f"; not read in {len(found.missing)} runs ({', '.join(found.missing[:3])}"
+                f"{' ...' if len(found.missing) > 3 else ''}), fitted as unfiltered"
+                if found.missing
+                else ""
+            )
+            warnings.warn(
+                f"{dataset.source}: {found.describe()}: the fits see the model through it{rest}"
+                " (declare it in a rig file's [filter], or --no-detect-filter to fit the "
+                "records as they are)",
+                HystdiscWarning,
+                stacklevel=4,
+            )
     levels = distinct_currents(dataset.currents)
     state.single_current = len(levels) < 2
     if state.single_current and not opts.single_current:  # declared: no warning needed

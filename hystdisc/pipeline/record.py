@@ -186,6 +186,8 @@ def build_results(state: State) -> Results:
         data["noise"] = section("noise", state.noise.to_dict())
         enc = state.noise.encoder
         data["encoder"] = EncoderRecord.make(**enc.to_dict()) if enc is not None else None
+    if state.prefilter is not None:  # a moving average read in the records, fitted through
+        data["prefilter"] = section("prefilter", state.prefilter.to_dict())
     if fd.motion_noise is not None:  # driven: the measured motion's noise, in the intervals
         data["motion_noise"] = section("motion_noise", fd.motion_noise.to_dict())
     if state.outliers is not None:  # the isolated glitches left out of the fits

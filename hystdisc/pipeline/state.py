@@ -19,7 +19,7 @@ from hystdisc.closing.measured import MeasuredVerdict
 from hystdisc.closing.open_library import ResidualTerms
 from hystdisc.closing.reduction import Reduction
 from hystdisc.closing.reselect import Reselection
-from hystdisc.data import Dataset
+from hystdisc.data import Dataset, FilterFound
 from hystdisc.data.envelope import Envelope
 from hystdisc.data.noise import NoiseEstimate
 from hystdisc.discovery import FAMILY_SHAPE, EqData, ShapeFit
@@ -39,7 +39,7 @@ FITTED = (
     "stage1", "discovered_shape", "discovered_name", "discovered", "terms", "family_fits",
     "discovered_fit", "family", "declared", "equal_fits", "loop", "final_fit",
     "reselection", "reduction", "effects", "final_admissibility", "outliers", "staged",
-    "delay_scan", "measured", "failed", "open_library",
+    "delay_scan", "measured", "failed", "open_library", "prefilter",
 )  # fmt: skip
 
 
@@ -58,6 +58,7 @@ class State:
     # where the independent tasks run (default: ThreadTasks(options.n_jobs))
     tasks: Tasks | None = field(default=None, repr=False)
     # prepare
+    prefilter: FilterFound | None = None  # a moving average read in the records
     single_current: bool = False
     experiment: str = ""
     noise: NoiseEstimate | None = None

@@ -69,6 +69,7 @@ from hystdisc.results.sections import (
     NoiseRecord,
     OpenLibraryRecord,
     OutliersRecord,
+    PrefilterRecord,
     ReductionRecord,
     ReselectionRecord,
     SystemModelRecord,
@@ -154,6 +155,8 @@ class Results(Record):
         Driven experiments: the noise on the measured motion, in the fit and intervals.
     encoder : EncoderRecord or None
         The lattice of the recorded angle, when it is quantized.
+    prefilter : PrefilterRecord or None
+        A moving average read in the records, fitted through (absent: none read).
     current_laws : CurrentLawsRecord or None
         The staged fit (``discover --staged``); None without it.
     outliers : OutliersRecord or None
@@ -222,6 +225,7 @@ class Results(Record):
     noise: NoiseRecord | None = None
     motion_noise: MotionNoiseRecord | None = None
     encoder: EncoderRecord | None = None
+    prefilter: PrefilterRecord | None = None
     outliers: OutliersRecord | None = None
     reselection: ReselectionRecord | None = None
     reduction: ReductionRecord | None = None

@@ -273,6 +273,39 @@ class MotionNoiseRecord(Record):
 
 
 @dataclass
+class PrefilterRecord(Record):
+    """``prefilter``: a causal moving average read in the records, which the fits saw the
+    model through (:class:`hystdisc.data.FilterFound`; absent when the data declare their
+    filter or none was read).
+
+    Attributes
+    ----------
+    windows : dict of str to int
+        Each run's window, samples.
+    channels : list of str
+        The channels it acts on.
+    contrast : dict of str to float
+        Each run's notches below its sidelobes, decades (runs where it was read).
+    inferred : list of str
+        Runs whose window was inferred from the others' (too few notches of their own).
+    missing : list of str
+        Runs with no window (fitted as unfiltered).
+    note : str
+        What was found, in one sentence.
+    extra : dict
+        Keys this version does not know.
+    """
+
+    windows: dict[str, int] = field(default_factory=dict)
+    channels: list[str] = field(default_factory=list)
+    contrast: dict[str, float] = field(default_factory=dict)
+    inferred: list[str] = field(default_factory=list)
+    missing: list[str] = field(default_factory=list)
+    note: str = ""
+    extra: dict[str, Any] = field(default_factory=dict, repr=False)
+
+
+@dataclass
 class EncoderRecord(Record):
     """``encoder``: the lattice of a quantized recorded angle (:class:`hystdisc.data.Quantization`).
 
@@ -379,6 +412,7 @@ SECTIONS: dict[str, type[Record]] = {
     "noise": NoiseRecord,
     "motion_noise": MotionNoiseRecord,
     "encoder": EncoderRecord,
+    "prefilter": PrefilterRecord,
     "outliers": OutliersRecord,
     "reselection": ReselectionRecord,
     "reduction": ReductionRecord,
@@ -418,6 +452,7 @@ __all__ = [
     "OpenLibraryRecord",
     "OutlierRecord",
     "OutliersRecord",
+    "PrefilterRecord",
     "ReductionRecord",
     "ReselectionRecord",
     "RunEnvelopeRecord",

@@ -255,6 +255,9 @@ def measurement_lines(res: Results) -> list[str]:
     motion = res.motion_noise
     if motion is not None and motion.std is not None:  # driven: the motion is measured too
         out.append(_motion_line(motion))
+    pre = res.prefilter
+    if pre is not None and pre.windows:
+        out.append(f"Filter read in the records: {pre.note}; the fits see the model through it")
     if enc:
         counts = enc.counts_per_revolution
         what = f"{counts} counts per revolution, " if counts else ""
