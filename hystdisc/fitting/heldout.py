@@ -83,15 +83,23 @@ class HeldOutFolds:
         return out
 
     def _fold_refit(
-        self, fold: list[int], v_gn: np.ndarray, rss_gn: float | None, full: bool = False
-    ) -> np.ndarray:
+        self,
+        fold: list[int],
+        v_gn: np.ndarray,
+        rss_gn: float | None,
+        full: bool = False,
+        rss_joint: float = np.inf,
+    ) -> np.ndarray | None:
         """The parameters fitted without the runs ``fold``: the Gauss-Newton estimate
         ``v_gn`` when the other runs' RSS there is its linear prediction ``rss_gn`` (within
         :data:`HELDOUT_GN_TRUST` noise variances), else :data:`HELDOUT_STEPS`
         Levenberg-Marquardt iterations on the other runs from it (the linear step alone
-        misjudges a fold that moves the fit far). ``full``: a complete fit on the other
-        runs from ``v_gn`` (up to ``max_nfev`` iterations; ``rss_gn`` is not used), for a
-        fold whose quick estimate did not predict it."""
+        misjudges a fold that moves the fit far). None when the other runs' RSS at the
+        step is above ``rss_joint`` (theirs at the joint optimum, a point of the same
+        problem) by more than that tolerance: the step went the wrong way, and a few
+        iterations from it are no estimate of the refit. ``full``: a complete fit on the
+        other runs from ``v_gn`` (up to ``max_nfev`` iterations; ``rss_gn`` is not used),
+        for a fold whose quick estimate did not predict it."""
         x = np.clip(v_gn[: self.npar], self.par.lower, self.par.upper)
         if HELDOUT_STEPS < 1 and not full:
             return x
@@ -103,10 +111,10 @@ class HeldOutFolds:
         v0 = np.concatenate([x, nu[train].ravel()])
         with np.errstate(all="ignore"):
             r0 = sub.residuals(v0)
-        if not full and (
-            np.all(np.isfinite(r0))
-            and abs(r0 @ r0 - rss_gn) < HELDOUT_GN_TRUST * self.data.noise_std**2
-        ):
+        trust = HELDOUT_GN_TRUST * self.data.noise_std**2
+        if not full and not (np.all(np.isfinite(r0)) and r0 @ r0 <= rss_joint + trust):
+            return None
+        if not full and abs(r0 @ r0 - rss_gn) < trust:
             return x
         free = np.full(sub.nnu * len(train), np.inf)
         lo = np.concatenate([self.par.lower, -free])
@@ -184,10 +192,12 @@ class HeldOutFolds:
             # the other runs' RSS at the step, as the linear model predicts it
             keep = np.ones(len(res), dtype=bool)
             keep[rows] = False
-            rss_gn = float(res[keep] @ res[keep] + 2 * go @ delta + delta @ Go @ delta)
-            xr = self._fold_refit(fold, vr, rss_gn)
-            out, st = self._predict_fold(xr, fold, nu)
-            if any(st) or self._far_off(fold, out, res[rows]):
+            rss_joint = float(res[keep] @ res[keep])
+            rss_gn = float(rss_joint + 2 * go @ delta + delta @ Go @ delta)
+            xr = self._fold_refit(fold, vr, rss_gn, rss_joint=rss_joint)
+            if xr is not None:
+                out, st = self._predict_fold(xr, fold, nu)
+            if xr is None or any(st) or self._far_off(fold, out, res[rows]):
                 # the quick estimate can leave the stable region or its basin on its own:
                 # the fold is fitted fully from the joint optimum (before the fit is
                 # called unstable, or its error is read)

@@ -189,8 +189,8 @@ def test_a_diverging_fold_says_why_its_heldout_error_is_missing(monkeypatch):
     fit = OutputErrorFitter(fd, par, max_nfev=60).fit(heldout=False)
     names = list(par.names)
 
-    def unstable(self, fold, v_gn, rss_gn, full=False):  # negative damping, quick or full
-        x = np.array(v_gn[: self.npar])
+    def unstable(self, fold, v_gn, rss_gn, full=False, rss_joint=np.inf):
+        x = np.array(v_gn[: self.npar])  # negative damping, quick or full
         x[names.index("k_x")] = -500.0
         return x
 
@@ -290,7 +290,7 @@ def test_a_fold_the_quick_estimate_misses_by_far_is_refitted_fully(monkeypatch):
     names = list(par.names)
     refit = HeldOutFolds._fold_refit
 
-    def astray(self, fold, v_gn, rss_gn, full=False):
+    def astray(self, fold, v_gn, rss_gn, full=False, rss_joint=np.inf):
         if full:
             return refit(self, fold, v_gn, rss_gn, True)
         x = np.array(v_gn[: self.npar])
@@ -301,3 +301,31 @@ def test_a_fold_the_quick_estimate_misses_by_far_is_refitted_fully(monkeypatch):
     quick = OutputErrorFitter(fd, par, max_nfev=60).heldout_at(fit)
     assert quick.heldout_rms == pytest.approx(full.heldout_rms, rel=1e-9)
     assert quick.heldout_rms < FOLD_RECHECK * fit.rms
+
+
+def test_a_fold_whose_step_goes_the_wrong_way_is_refitted_fully():
+    """A misspecified model with directions the data leave flat (bouc-wen on a Spencer
+    damper with a bias per level and a backlash, as another lab's records are): a fold's
+    Gauss-Newton step fitted the other runs worse than the joint optimum, and two
+    iterations from there predicted the fold at 2.2 times its refit (held-out 162.8 N
+    quick, 98.2 N refitted; on the 18-test stand-in bouc-wen 206 N against bouc-wen-std's
+    121 N for the same fit, which decided the selection). Such a step is no estimate of
+    the refit: the fold is refitted fully, and the quick held-out error is the refit's."""
+    from hystdisc import Discovery
+    from hystdisc.closing.rounds import fold_rms
+
+    spencer = dict(
+        alpha_a=90, alpha_b=448, c0_a=2100, c0_b=350, c1_a=28300, c1_b=295, k0=4690, k1=500,
+        A=46700, beta=23350, n=2,
+    )  # fmt: skip
+    effects = {"current_bias": {"f_0a": 30.0, "f_0i": -20.0}, "backlash": {"r_b": 0.0005}}
+    data = generate(
+        Model("spencer", spencer, effects), "driven", currents=(0, 1, 2), duration=1.0,
+        fs=500, drives=["0.01@1", "0.005@2", "0.0025@4"], noise=15.0, seed=1,
+    )  # fmt: skip
+    d = Discovery(families=["bouc-wen"], close_loop=False, n_jobs=1).fit(data)
+    fit = d.family_fits_["bouc-wen"]
+    full = OutputErrorFitter(d.fit_data_, fit.par, max_nfev=40).heldout_at(fit, full=True)
+    quick, refit = fold_rms(d.fit_data_, fit), fold_rms(d.fit_data_, full)
+    # measured: within 1.6 % in every fold (before: 228.7 against 104.5 in the third)
+    assert np.allclose(quick, refit, rtol=0.05), (quick, refit)
