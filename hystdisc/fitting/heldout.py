@@ -5,11 +5,11 @@ Each fold (one test condition, or one run when all runs share one:
 a Gauss-Newton step from the joint optimum (the Jacobian and residual of the joint fit,
 without the fold's rows) and :data:`HELDOUT_STEPS` Levenberg-Marquardt iterations on the
 other runs, and the fold's runs are simulated with it. A fold whose quick estimate
-diverges, or predicts it more than :data:`FOLD_RECHECK` times worse than the joint fit
-fits it, is refitted fully from the joint optimum (before the fit is called unstable, or
-its error is read); a
-verdict that rests on the held-out error can ask for complete refits of every fold
-(:meth:`HeldOutFolds.heldout_at`, ``full``).
+diverges, whose step fits the other runs worse than the joint optimum does (the linear
+step went the wrong way), or that predicts the fold more than :data:`FOLD_RECHECK` times
+worse than the joint fit fits it, is refitted fully from the joint optimum (before the
+fit is called unstable, or its error is read); a verdict that rests on the held-out error
+can ask for complete refits of every fold (:meth:`HeldOutFolds.heldout_at`, ``full``).
 
 :class:`HeldOutFolds` is the part of
 :class:`~hystdisc.fitting.output_error.OutputErrorFitter` that does this; it uses the
