@@ -111,11 +111,13 @@ class HeldOutFolds:
         v0 = np.concatenate([x, nu[train].ravel()])
         with np.errstate(all="ignore"):
             r0 = sub.residuals(v0)
-        trust = HELDOUT_GN_TRUST * self.data.noise_std**2
-        if not full and not (np.all(np.isfinite(r0)) and r0 @ r0 <= rss_joint + trust):
-            return None
-        if not full and abs(r0 @ r0 - rss_gn) < trust:
-            return x
+        if not full:
+            trust = HELDOUT_GN_TRUST * self.data.noise_std**2
+            rss0 = float(r0 @ r0)
+            if not (np.all(np.isfinite(r0)) and rss0 <= rss_joint + trust):
+                return None
+            if abs(rss0 - rss_gn) < trust:
+                return x
         free = np.full(sub.nnu * len(train), np.inf)
         lo = np.concatenate([self.par.lower, -free])
         hi = np.concatenate([self.par.upper, free])
