@@ -10,6 +10,9 @@ step went the wrong way), or that predicts the fold more than :data:`FOLD_RECHEC
 worse than the joint fit fits it, is refitted fully from the joint optimum (before the
 fit is called unstable, or its error is read); a verdict that rests on the held-out error
 can ask for complete refits of every fold (:meth:`HeldOutFolds.heldout_at`, ``full``).
+The runs of the folds refitted fully are kept (``heldout_refitted``): a fit whose folds
+all need it sits in a curved, flat valley, the mark of a degenerate basin, which the
+held-out error itself may not show (:func:`~hystdisc.fitting.multistart.poor_predictions`).
 
 :class:`HeldOutFolds` is the part of
 :class:`~hystdisc.fitting.output_error.OutputErrorFitter` that does this; it uses the
@@ -52,6 +55,9 @@ class HeldOutFolds:
 
     #: Why the held-out error is missing, when a fold's prediction diverged.
     heldout_note: str = ""
+    #: The runs of the folds whose quick estimate was not trusted and that were refitted
+    #: fully (set by the last quick held-out error).
+    heldout_refitted: tuple[str, ...] = ()
 
     def heldout_at(self, fit: Any, full: bool = False) -> Any:
         """``fit`` (of this parametrization to this data) with its held-out error, computed
@@ -65,13 +71,21 @@ class HeldOutFolds:
         if (fit.heldout_rms is not None and not full) or self.data.n_runs < 2:
             return fit
         v = np.concatenate([np.asarray(fit.x, dtype=float), np.asarray(fit.nuisance).ravel()])
+        refitted = fit.heldout_refitted
         if full:
             rms, preds = self._heldout(v, None, None, full=True)
         else:
             rms, preds = self._heldout(v, self.residuals(v), self.jacobian(v))
+            refitted = self.heldout_refitted
         # why there is none (a fold's prediction diverged) is said, as fit() says it
         notes = fit.notes if rms is not None else [*fit.notes, self.heldout_note]
-        return dataclasses.replace(fit, heldout_rms=rms, heldout_predictions=preds, notes=notes)
+        return dataclasses.replace(
+            fit,
+            heldout_rms=rms,
+            heldout_predictions=preds,
+            notes=notes,
+            heldout_refitted=refitted,
+        )
 
     def _at_bounds(self, v: np.ndarray) -> np.ndarray:
         """Mask of the entries of ``v`` (parameters, then initial states) at a bound."""
@@ -158,6 +172,7 @@ class HeldOutFolds:
         cnt = 0
         preds: list[np.ndarray | None] = [None] * self.data.n_runs
         G = g = None
+        self.heldout_refitted = ()
         if not full:
             G = self.gram(Jm) if gram is None else gram
             g = Jm.T @ res
@@ -205,6 +220,7 @@ class HeldOutFolds:
                 # called unstable, or its error is read)
                 vj = np.concatenate([x, nu.ravel()])
                 out, st = self._predict_fold(self._fold_refit(fold, vj, None, True), fold, nu)
+                self.heldout_refitted += tuple(self.data.names[r] for r in fold)
             sq, cnt, bad = self._pool(fold, out, st, preds, sq, cnt)
             if bad:
                 return None, None

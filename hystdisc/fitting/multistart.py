@@ -265,17 +265,25 @@ def term_starts(
 
 def poor_predictions(
     fits: dict[str, OEFit], good_rms: float, with_heldout: Callable[[str], OEFit], mapper
-) -> dict[str, float]:
-    """The term families whose fit is at the floor (``good_rms``) but whose held-out
-    error is above it: name -> held-out RMS. Their held-out errors are computed here
-    (``with_heldout`` on the threads of ``mapper``) and kept in ``fits`` (updated)."""
+) -> dict[str, str]:
+    """The term families whose fit is at the floor (``good_rms``) but may sit in a wrong
+    basin: name -> why, in words. Such a fit's held-out error is above the floor, or
+    its held-out folds had to be refitted fully (:attr:`OEFit.heldout_refitted`: the data
+    leave a curved, flat valley there, which a degenerate basin makes, such as Bouc-Wen's
+    ``n -> 0`` with ``beta`` growing without bound). Their held-out errors are computed
+    here (``with_heldout`` on the threads of ``mapper``) and kept in ``fits`` (updated)."""
     names = [n for n, f in fits.items() if n in FAMILIES and not f.is_system and f.rms <= good_rms]
     fits.update(zip(names, mapper(with_heldout, names), strict=True))
     out = {}
     for n in names:
-        h = fits[n].heldout_rms
+        h, flat = fits[n].heldout_rms, fits[n].heldout_refitted
         if h is not None and not h <= good_rms:  # a diverged fold (inf) counts too
-            out[n] = float(h)
+            out[n] = f"predicted the held-out runs at RMS {h:.4g}, above the floor {good_rms:.4g}"
+        elif flat:
+            out[n] = (
+                f"its fits without a run moved along a curved, flat valley ({len(flat)} "
+                "held-out runs refitted fully), as a degenerate basin makes them"
+            )
     return out
 
 

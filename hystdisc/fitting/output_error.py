@@ -99,6 +99,11 @@ class OEFit:
     nested_from : str or None
         The family whose optimum this fit was refitted from (a family never ends worse
         than a model it contains), if any.
+    heldout_refitted : tuple of str
+        The runs of the held-out folds whose quick estimate was not trusted (its
+        Gauss-Newton step fitted the other runs worse than the joint optimum, diverged,
+        or predicted far off) and that were refitted fully: the fit sits where the data
+        leave a curved, flat valley that a linear step does not describe.
     """
 
     par: Parametrization
@@ -124,6 +129,7 @@ class OEFit:
     starts: dict[str, float] | None = None
     starts_note: str | None = None
     nested_from: str | None = None
+    heldout_refitted: tuple[str, ...] = ()
 
     @property
     def term_model(self) -> TermModel:
@@ -447,6 +453,7 @@ class OutputErrorFitter(HeldOutFolds):
         )
         if heldout and self.data.n_runs >= 2:
             fit.heldout_rms, fit.heldout_predictions = self._heldout(v, res, Jm, gram)
+            fit.heldout_refitted = self.heldout_refitted
             if fit.heldout_rms is None:
                 fit.notes.append(self.heldout_note)
         return fit

@@ -81,7 +81,7 @@ def global_fits(state: State) -> None:
     good = NOISE_RATIO * fd.noise_std
     fams = list(state.compared)
     with_heldout = lambda n: _with_heldout(state, n)  # noqa: E731
-    poor: dict[str, float] = {}
+    poor: dict[str, str] = {}
     if opts.n_starts > 1 and opts.heldout and fd.n_runs >= 2:
         poor = poor_predictions(state.family_fits, good, with_heldout, state.map)
     # a family above the floor whose related families were not asked for (a declared
@@ -117,11 +117,10 @@ def global_fits(state: State) -> None:
         state.family_fits = nesting_pass(
             fd, state.family_fits, opts.max_nfev, say, screen_above=good, failures=failures
         )
-    for name, heldout_rms in poor.items():
+    for name, why in poor.items():
         state.family_fits[name].notes.append(
-            f"its first start fitted at the noise floor but predicted the held-out runs "
-            f"at RMS {heldout_rms:.4g} ({heldout_rms / fd.noise_std:.3g}x the noise): "
-            "a wrong basin can fit the data it saw, so its other starts were run too"
+            f"its first start fitted at the noise floor but {why}: a wrong basin can fit "
+            "the data it saw, so its other starts were run too"
         )
     for name, hs in helping.items():  # the helpers' fits only served as starts
         state.family_fits[name].notes.append(

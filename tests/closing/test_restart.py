@@ -3,8 +3,12 @@ trusted (issue 16): a family's first fit runs its other starts, an offset refit 
 from the family fitted again on the shifted angle.
 
 The data: a seed-form Bouc-Wen with ``n = 0.593``, whose stage-1 start falls in the
-``n -> 0`` basin. That basin fits the runs it saw at 1.01 times the noise and predicts a
-held-out run at over 100 times the noise.
+``n -> 0`` basin (``beta`` about 1400). That basin fits the runs it saw at 1.004 times the
+noise and, its folds refitted fully, predicts them at 1.01 times: the held-out error does
+not tell it from the optimum (a quick estimate of it once put it at 1.3 times, and that
+over-statement was what sent the fit to its other starts). What tells it: every fold's
+Gauss-Newton step from it fits the other runs worse than the joint optimum, a curved, flat
+valley that a degenerate basin makes.
 """
 
 from __future__ import annotations
@@ -41,7 +45,7 @@ def test_a_first_fit_at_the_floor_that_does_not_predict_runs_its_other_starts():
     for k, v in NORMALIZED.items():
         lo, hi = fit.ci95[k]
         assert lo < v < hi, (k, v, lo, hi)
-    assert any("predicted the held-out runs at RMS" in n for n in fit.notes), fit.notes
+    assert any("curved, flat valley (3 held-out runs" in n for n in fit.notes), fit.notes
 
 
 def test_the_shifted_data_are_the_angle_minus_the_shift():
