@@ -178,9 +178,9 @@ def test_a_fold_that_diverges_is_refitted_fully_before_the_fit_is_called_unstabl
     calls: list[bool] = []
     real_refit, real_predict = OutputErrorFitter._fold_refit, OutputErrorFitter._predict_fold
 
-    def fold_refit(self, fold, v, rss, full=False):
+    def fold_refit(self, fold, v, rss, full=False, **kw):
         calls.append(full)
-        return real_refit(self, fold, v, rss, full)
+        return real_refit(self, fold, v, rss, full, **kw)
 
     def predict(self, x, fold, nu):
         out, st = real_predict(self, x, fold, nu)
