@@ -65,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
 
     from hystdisc.apply.predict import beyond_envelope, predict_dataset
-    from hystdisc.data import atomic_write_text
+    from hystdisc.data import atomic_write_text, with_detected_filter
     from hystdisc.results import Results
     from hystdisc.simulation import HOLDS
 
@@ -84,6 +84,13 @@ def run(args: argparse.Namespace) -> int:
         )
     for line in beyond_envelope(res.envelope, data):
         warnings.warn(line, HystdiscWarning, stacklevel=1)
+    data, found = with_detected_filter(data)
+    if found is not None:  # the prediction goes through it, as the fit saw its own
+        warnings.warn(
+            f"{data.source}: {found.describe()}: the prediction goes through it",
+            HystdiscWarning,
+            stacklevel=1,
+        )
     preds = predict_dataset(tm, data, res.experiment, hold)
     meas = data.measured()
     lines = [f"run,t,current,{meas},{meas}_pred"]

@@ -137,7 +137,8 @@ class FilterFound:
         lo = min(self.contrast.values())
         return (
             f"the records went through a causal moving average of {span} samples "
-            f"({len(self.windows)} runs, on {' and '.join(self.channels)}; its notches lie "
+            f"({len(self.windows)} run{'s' if len(self.windows) != 1 else ''}, on "
+            f"{' and '.join(self.channels)}; its notches lie "
             f"{lo:.1f} decades or more below its sidelobes)"
         )
 

@@ -14,10 +14,11 @@ import numpy as np
 import pytest
 
 from hystdisc import Discovery
+from hystdisc.cli import main
 from hystdisc.data import Dataset, detect_filter, filter_windows, load, with_detected_filter
 from hystdisc.errors import HystdiscWarning
 from hystdisc.models import Model
-from hystdisc.simulation.synth import generate
+from hystdisc.simulation.synth import generate, write_dataset
 
 #: three test frequencies at 1 kHz, 4 s each, noise on both channels (as in the README's
 #: driven example)
@@ -85,7 +86,7 @@ def _utfsm_columns() -> dict:
     }
 
 
-def test_discovery_fits_through_the_filter_it_reads():
+def test_discovery_fits_through_the_filter_it_reads(tmp_path, capsys):
     """A Dahl damper behind a 12-sample moving average: read and fitted through, the
     parameters come back; taken as unfiltered, the filter's lag is read as damper physics."""
     model = Model("dahl", {"k_s": 0.0})
@@ -118,3 +119,15 @@ def test_discovery_fits_through_the_filter_it_reads():
     pred = d.predict(new)[0]
     e = (pred.predicted - pred.measured)[200:]
     assert np.sqrt(np.mean(e**2)) < 1.2 * floor  # measured: 1.09 times
+    # hystdisc predict does the same, and says so
+    res, csv = tmp_path / "r.json", tmp_path / "new.csv"
+    res.write_text(d.results_.to_json())
+    write_dataset(new, csv)
+    capsys.readouterr()
+    assert main(["predict", str(res), str(csv), "-o", str(tmp_path / "p.csv"), "--quiet"]) == 0
+    err = capsys.readouterr().err
+    assert "moving average of 40 samples (1 run, on torque and theta;" in err, err
+    assert err.rstrip().endswith("the prediction goes through it"), err
+    got = np.loadtxt(tmp_path / "p.csv", delimiter=",", skiprows=1, usecols=(3, 4))
+    # the same prediction, to the rounding of the records in the CSV (3e-8 here)
+    np.testing.assert_allclose(got[:, 1], pred.predicted, rtol=0, atol=1e-6)
