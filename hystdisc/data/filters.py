@@ -53,6 +53,9 @@ MIN_NOTCHES = 3
 #: Of the odd multiples of the best-read window that read to this fraction of its contrast,
 #: the longest is the filter.
 SAME_CONTRAST = 0.5
+#: A record that repeats every whole number of samples to this fraction of its RMS has no
+#: noise to read a filter in (a simulation written to 7 digits repeats to about 3e-8).
+NOISELESS = 1e-6
 #: Runs of one test condition: their motions' frequencies agree to this fraction.
 SAME_FREQUENCY = 0.02
 #: Runs filtered over one fraction of their period: ``window * f * Ts`` agree to this.
@@ -255,6 +258,26 @@ def _consensus(runs: Sequence[Run], found: dict[str, WindowFound]) -> tuple[dict
     return out, inferred
 
 
+def _noiseless(t, y) -> bool:
+    """The record ``y`` repeats exactly, to :data:`NOISELESS` of its RMS, every whole
+    number of samples of its motion's period (over its second half, after the start-up):
+    a simulation written without noise. All such a record has is its harmonics, and a
+    window's notches and sidelobes can fall on them (a clean Bouc-Wen force and its sine
+    motion at 200 samples a cycle read 20 samples). A period that is no whole number of
+    samples leaves rounding that does not repeat, and no such mark."""
+    nu = motion_frequency(t, y) * float(np.median(np.diff(t)))
+    if nu <= 0:
+        return False
+    p = int(round(1.0 / nu))
+    yv = np.asarray(y, dtype=float)
+    half = yv.size // 2
+    if abs(p * nu - 1.0) > 1e-3 or half <= p:
+        return False
+    d = yv[-half:] - yv[-half - p : -p]
+    scale = float(np.sqrt(np.mean((yv - yv.mean()) ** 2)))
+    return float(np.sqrt(np.mean(d**2))) < NOISELESS * scale
+
+
 def detect_filter(runs: Sequence[Run], output: str = "torque") -> FilterFound | None:
     """The moving average a dataset's records went through, run by run, or None when no
     run's ``output`` shows one.
@@ -265,7 +288,8 @@ def detect_filter(runs: Sequence[Run], output: str = "torque") -> FilterFound | 
     sharp corners in a periodic test (Bingham's sign) has strong odd harmonics and no
     even ones, whose lines a window's notches and sidelobes can fall on (an unfiltered
     Bingham set read 9 to 87 samples in its force), while the imposed sine has no such
-    harmonics. A filter on the force alone of a periodic test is therefore not found.
+    harmonics; nor when the run has no noise at all (:func:`_noiseless`). A filter on the
+    force alone of a periodic test is therefore not found.
     The motion (``theta``) is listed among the channels when its notches lie at those
     windows (median contrast over the runs at least :data:`MIN_CONTRAST`).
     """
@@ -282,7 +306,8 @@ def detect_filter(runs: Sequence[Run], output: str = "torque") -> FilterFound | 
         c = contrasts(np.diff(np.asarray(r.theta, dtype=float))).get(got.window)
         on_x[r.name] = c[0] if c is not None else -np.inf
         periodic = motion_frequency(np.asarray(r.t, dtype=float), r.theta) > 0
-        if periodic and not on_x[r.name] >= MIN_CONTRAST:
+        t = np.asarray(r.t, dtype=float)
+        if periodic and (not on_x[r.name] >= MIN_CONTRAST or _noiseless(t, r.theta)):
             continue
         found[r.name] = got
         out.contrast[r.name] = round(got.contrast, 3)
