@@ -119,7 +119,6 @@ class FilterFound:
             "kind": "moving_average",
             "windows": dict(self.windows),
             "channels": list(self.channels),
-            "detected": True,
         }
 
     def to_dict(self) -> dict:
@@ -238,8 +237,8 @@ def _consensus(runs: Sequence[Run], found: dict[str, WindowFound]) -> tuple[dict
             if same(a, b) and w.window % own == 0 and (w.window // own) % 2
         )  # fmt: skip
     inferred = []
-    conditions = {round(freq[a], 3) for a in out}
-    if len(set(out.values())) == 1 and len(conditions) >= 2:
+    several = any(not same(a, b) for a in out for b in out)  # test conditions
+    if len(set(out.values())) == 1 and several:
         # one window at several test frequencies: a fixed window
         w = next(iter(out.values()))
         for r in runs:
@@ -258,16 +257,14 @@ def _consensus(runs: Sequence[Run], found: dict[str, WindowFound]) -> tuple[dict
     return out, inferred
 
 
-def _noiseless(t, y) -> bool:
+def _noiseless(nu: float, y) -> bool:
     """The record ``y`` repeats exactly, to :data:`NOISELESS` of its RMS, every whole
-    number of samples of its motion's period (over its second half, after the start-up):
+    number of samples of its motion's period (``1 / nu`` samples; over its second half,
+    after the start-up):
     a simulation written without noise. All such a record has is its harmonics, and a
     window's notches and sidelobes can fall on them (a clean Bouc-Wen force and its sine
     motion at 200 samples a cycle read 20 samples). A period that is no whole number of
     samples leaves rounding that does not repeat, and no such mark."""
-    nu = motion_frequency(t, y) * float(np.median(np.diff(t)))
-    if nu <= 0:
-        return False
     p = int(round(1.0 / nu))
     yv = np.asarray(y, dtype=float)
     half = yv.size // 2
@@ -305,9 +302,9 @@ def detect_filter(runs: Sequence[Run], output: str = "torque") -> FilterFound | 
             continue
         c = contrasts(np.diff(np.asarray(r.theta, dtype=float))).get(got.window)
         on_x[r.name] = c[0] if c is not None else -np.inf
-        periodic = motion_frequency(np.asarray(r.t, dtype=float), r.theta) > 0
         t = np.asarray(r.t, dtype=float)
-        if periodic and (not on_x[r.name] >= MIN_CONTRAST or _noiseless(t, r.theta)):
+        nu = motion_frequency(t, r.theta) * float(np.median(np.diff(t)))  # cycles a sample
+        if nu > 0 and (not on_x[r.name] >= MIN_CONTRAST or _noiseless(nu, r.theta)):
             continue
         found[r.name] = got
         out.contrast[r.name] = round(got.contrast, 3)
