@@ -133,15 +133,21 @@ class FilterFound:
         }
 
     def describe(self) -> str:
-        """One sentence: what was found, where."""
+        """One sentence: what was found, where (and the runs where nothing was)."""
         w = sorted(set(self.windows.values()))
         span = f"{w[0]}" if len(w) == 1 else f"{w[0]}-{w[-1]}"
         lo = min(self.contrast.values())
+        n, m = len(self.windows), len(self.missing)
+        rest = (
+            f"; none read in {m} run{'s' if m != 1 else ''} ({', '.join(self.missing[:3])}"
+            f"{' ...' if m > 3 else ''}), taken as unfiltered"
+            if m
+            else ""
+        )
         return (
             f"the records went through a causal moving average of {span} samples "
-            f"({len(self.windows)} run{'s' if len(self.windows) != 1 else ''}, on "
-            f"{' and '.join(self.channels)}; its notches lie "
-            f"{lo:.1f} decades or more below its sidelobes)"
+            f"({n} run{'s' if n != 1 else ''}, on {' and '.join(self.channels)}; its notches "
+            f"lie {lo:.1f} decades or more below its sidelobes{rest})"
         )
 
 

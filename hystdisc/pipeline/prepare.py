@@ -31,17 +31,10 @@ def prepare(state: State) -> None:
         dataset, state.prefilter = with_detected_filter(dataset)
         if state.prefilter is not None:
             state.dataset = dataset
-            found = state.prefilter
-            rest = (
-                f"; not read in {len(found.missing)} runs ({', '.join(found.missing[:3])}"
-                f"{' ...' if len(found.missing) > 3 else ''}), fitted as unfiltered"
-                if found.missing
-                else ""
-            )
             warnings.warn(
-                f"{dataset.source}: {found.describe()}: the fits see the model through it{rest}"
-                " (declare it in a rig file's [filter], or --no-detect-filter to fit the "
-                "records as they are)",
+                f"{dataset.source}: {state.prefilter.describe()}: the fits see the model "
+                "through it (declare it in a rig file's [filter], or --no-detect-filter to "
+                "fit the records as they are)",
                 HystdiscWarning,
                 stacklevel=4,
             )
