@@ -8,15 +8,15 @@ average of ``L`` samples leaves a mark no damper makes: its response
 ``sin(pi f L) / (L sin(pi f))`` is zero at every multiple of ``fs / L``, so the noise that
 went through it has notches there, between sidelobes.
 
-:func:`detect_window` reads that mark in one channel of one run: the part of the record
-that does not repeat from cycle to cycle (:func:`~hystdisc.data.noise.cycle_noise`; the
-first differences of a record that is not periodic), its Welch spectrum, and for every
-window ``L`` the median over its notches of the contrast between the spectrum at the
-sidelobes half-way between notches and at the notch (decades). The window with the
-largest contrast is the filter when that contrast is at least :data:`MIN_CONTRAST`.
-A smooth low-pass (an anti-aliasing or Butterworth filter) has no notches, and a divisor
-or multiple of the true window puts its notches on the true sidelobes, so neither reads
-as one. :func:`detect_filter` does it for every run of a dataset.
+:func:`detect_window` reads that mark in one channel of one run: the Welch spectrum of
+the record's first differences, and for every window ``L`` the median over its notches of
+the contrast between the spectrum at the sidelobes half-way between notches and at the
+notch (decades). A smooth low-pass (an anti-aliasing or Butterworth filter) has no
+notches, and an even multiple of the true window puts half its notches on the true
+sidelobes; a divisor ``L/m`` (``m`` odd) reads as well as the true window, so the filter
+is the longest odd multiple of the best-read window, when that reads at least
+:data:`MIN_CONTRAST`. :func:`detect_filter` does it for every run of a dataset and checks
+a periodic run's motion too.
 
 Examples
 --------
@@ -101,8 +101,9 @@ class FilterFound:
     contrast : dict of str to float
         Each run's contrast in the output, decades.
     inferred : list of str
-        Runs whose window was not read in their own records but from the period fraction
-        the others share (a short window has too few notches to be read).
+        Runs whose window was not read in their own records but from the fixed window or
+        the period fraction the others share (a short window has too few notches to be
+        read).
     missing : list of str
         Runs with no window (their records are not filtered, or too short to tell).
     """
@@ -151,9 +152,11 @@ class FilterFound:
         )
 
 
-def contrasts(r: np.ndarray, max_window: int = MAX_WINDOW) -> dict[int, tuple[float, int]]:
+def contrasts(
+    r: np.ndarray, max_window: int = MAX_WINDOW, only: int | None = None
+) -> dict[int, tuple[float, int]]:
     """Window -> (median contrast in decades, notches) of the signal ``r`` for every window
-    the spectrum resolves (see the module docstring)."""
+    the spectrum resolves (see the module docstring); ``only``: that window alone."""
     r = np.asarray(r, dtype=float)
     r = r[np.isfinite(r)]
     nper = 1 << int(np.floor(np.log2(max(r.size, 2) * 2 / (MIN_SEGMENTS + 1))))
@@ -165,7 +168,12 @@ def contrasts(r: np.ndarray, max_window: int = MAX_WINDOW) -> dict[int, tuple[fl
         return {}
     logp = np.log10(np.where(ok, p, p[ok].min()))
     out = {}
-    for L in range(3, min(max_window, nper // MIN_BINS_PER_NOTCH) + 1):
+    longest = min(max_window, nper // MIN_BINS_PER_NOTCH)
+    if only is None:
+        windows = range(3, longest + 1)
+    else:
+        windows = [only] if 3 <= only <= longest else []
+    for L in windows:
         k = np.arange(1, L)
         notch, lo, hi = k / L, (k - 0.5) / L, (k + 0.5) / L
         use = hi < 0.5 - 2.0 / nper
@@ -306,7 +314,7 @@ def detect_filter(runs: Sequence[Run], output: str = "torque") -> FilterFound | 
         got = detect_window(y)
         if got is None:
             continue
-        c = contrasts(np.diff(np.asarray(r.theta, dtype=float))).get(got.window)
+        c = contrasts(np.diff(np.asarray(r.theta, dtype=float)), only=got.window).get(got.window)
         on_x[r.name] = c[0] if c is not None else -np.inf
         t = np.asarray(r.t, dtype=float)
         nu = motion_frequency(t, r.theta) * float(np.median(np.diff(t)))  # cycles a sample
