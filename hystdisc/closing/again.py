@@ -13,6 +13,15 @@ family may be the one whose shape absorbed it. A 3 ms delay behind a tanh damper
 (acceptance set tanh/10/delay) left Spencer selected; the delay lowered Spencer's RMS
 0.130 -> 0.117 but not its held-out error; with the delay in every family, tanh predicts
 at the noise.
+
+A seen effect whose refit also removed too little of the residual's excess is carried only
+when another family, refitted with it alone on all the data, fits them better than the
+selected final model predicts its held-out conditions (:func:`screened`): only such a
+family can be selected with it. Behind a tanh damper with the same lag (driven stress set
+tanh/16/delay) the delay removed 7 % of Bouc-Wen's excess, so the families were never
+compared with it, and Bouc-Wen was selected at 7.2 times the noise; on the UTFSM damper as
+one CSV without its filter (the lag removed 8 % of Spencer's excess) the screen's refits
+are all that is added when no family fits better with it than Spencer predicts.
 """
 
 from __future__ import annotations
@@ -21,8 +30,17 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from hystdisc.closing.reduction import Reduction, reduce_family
-from hystdisc.closing.reselect import Context, Reselection, reselect, term_effects
+from hystdisc.closing.refit import EFFECT_BIC_MARGIN
+from hystdisc.closing.reselect import (
+    Context,
+    Reselection,
+    refit_families,
+    reselect,
+    term_effects,
+)
 from hystdisc.fitting import OEFit
 
 
@@ -96,6 +114,94 @@ def absorbed(loop: Any, seen: Mapping[str, Any]) -> list[str]:
     return out
 
 
+def small(loop: Any, seen: Mapping[str, Any]) -> list[str]:
+    """The effects of ``seen`` whose refit by the loop lowered BIC by the margin, is
+    significant and admissible, but removes too little of the residual's excess and does
+    not predict the held-out conditions better: absorbed by the selected family, or a lag
+    its misfit imitates (:func:`screened` tells them apart).
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace as V
+    >>> tried = [V(name="channel_delay", ok=True, improves=False, significant=True,
+    ...            admissible=True, predicts=False, bic_before=0.0, bic_after=-50.0)]
+    >>> small(V(effects=[], tried=tried), {"channel_delay": {}})
+    ['channel_delay']
+    >>> tried[0].bic_after = -1.0  # did not lower BIC by the margin
+    >>> small(V(effects=[], tried=tried), {"channel_delay": {}})
+    []
+    """
+    out = []
+    for name in seen:
+        if name in loop.effects:
+            continue
+        wanted = [
+            v
+            for v in loop.tried
+            if v.name == name
+            and v.ok
+            and not v.improves
+            and v.bic_after is not None
+            and v.bic_after < v.bic_before - EFFECT_BIC_MARGIN
+            and v.significant
+            and v.admissible
+            and not v.predicts
+        ]
+        if wanted:
+            out.append(name)
+    return out
+
+
+def screened(
+    table: Mapping[str, OEFit],
+    family: str,
+    loop: Any,
+    ctx: Context,
+    seen: Mapping[str, Mapping[str, float]],
+) -> list[str]:
+    """The effects of :func:`small` that another family, refitted with that effect alone
+    (no held-out errors), fits better than the selected final model predicts: its RMS on
+    all the runs below ``loop.fit``'s held-out RMS. A family above that cannot be selected
+    with the effect (its held-out error would be higher still), so the comparison with
+    held-out errors is run only when one is below it.
+
+    Parameters
+    ----------
+    table : mapping of str to OEFit
+        The family table's fits, without effects.
+    family : str
+        The selected family (not refitted here: the loop refitted it).
+    loop : LoopResult
+        The loop closed on ``family``.
+    ctx : Context
+        The data and the callbacks.
+    seen : mapping of str to mapping
+        Effects stage 1 saw, each with the start values of its parameters.
+
+    Returns
+    -------
+    list of str
+        The effects to carry into the comparison.
+    """
+    bar = loop.fit.heldout_rms
+    if bar is None or not np.isfinite(bar):
+        return []
+    others = {n: f for n, f in table.items() if n != family}
+    out = []
+    for name in small(loop, seen):
+        ctx.say(f"selection again: is {name} absorbed by {family}? every other family with it")
+        fits = refit_families(others, [name], ctx.data, ctx.eq, dict(seen[name]), ctx.shapes,
+                              ctx.max_nfev, False, ctx.mapper)  # fmt: skip
+        below = [n for n, f in fits.items() if f is not others[n] and f.rms < bar]
+        if below:
+            ctx.say(
+                f"selection again: with {name}, {', '.join(below)} fit better than "
+                f"{family} predicts ({bar:.4g})"
+            )
+            out.append(name)
+    return out
+
+
 def compare_again(
     table: Mapping[str, OEFit],
     family: str,
@@ -118,7 +224,9 @@ def compare_again(
         The data and the callbacks (:class:`~hystdisc.closing.reselect.Context`).
     seen : mapping of str to mapping, optional
         Effects stage 1 saw, each with the start values of its parameters: carried too
-        when the loop's refit of them failed only the held-out test (:func:`absorbed`).
+        when the loop's refit of them failed only the held-out test (:func:`absorbed`),
+        or that and the share of the excess while another family fits better with them
+        than the selected one predicts (:func:`screened`).
 
     Returns
     -------
@@ -127,6 +235,7 @@ def compare_again(
     out = Again(family, None, loop)
     seen = seen or {}
     wanted = absorbed(loop, seen)
+    wanted += screened(table, family, loop, ctx, seen)
     carried = term_effects(loop.effects) + wanted
     if carried:
         starts = {k: v for e in wanted for k, v in seen[e].items()}
