@@ -18,7 +18,7 @@ from hystdisc.closing.scores import EffectScore, with_effects
 from hystdisc.data import distinct_currents
 from hystdisc.discovery import family_start
 from hystdisc.fitting import OEFit, OutputErrorFitter
-from hystdisc.fitting.multistart import SCREEN_NFEV, screen_start
+from hystdisc.fitting.multistart import screen_start
 from hystdisc.measurement import FitData
 from hystdisc.models import EFFECTS, LAW_PREFIXES, Z_TORQUE_TERMS
 from hystdisc.stats import bic_change
@@ -27,11 +27,6 @@ from hystdisc.stats import bic_change
 #: within which :mod:`hystdisc.pipeline.close` calls two families equal fits,
 #: ``EQUAL_FIT_BIC``), and refitted only when the score test predicts such a drop.
 EFFECT_BIC_MARGIN = 6.0
-#: A play's width (:attr:`~hystdisc.models.Effect.play_param`) that the refit left unused
-#: is started again at these shares of the smallest and of the largest run's half-range
-#: (the open library's play widths), each start screened
-#: (:data:`~hystdisc.fitting.multistart.SCREEN_NFEV` iterations) and the best fitted on.
-PLAY_SHARES = (0.05, 0.1, 0.2)
 
 
 @dataclass(frozen=True)
@@ -346,58 +341,7 @@ def refit_with(
             best = new
         if fit_ok(best, fit) and best.bic < fit.bic - EFFECT_BIC_MARGIN and best.rms <= good_rms:
             break
-    if not (fit_ok(best, fit) and best.bic < fit.bic - EFFECT_BIC_MARGIN):
-        wide = play_refit(data, fit, added, estimate, max_nfev, heldout)
-        if wide is not None and np.isfinite(wide.bic) and wide.bic < best.bic:
-            best = wide
     return best
-
-
-def play_starts(data: FitData, fit: OEFit, added: Sequence[str], values: dict | None = None):
-    """Parametrizations of ``fit`` plus ``added`` started with each play width at
-    :data:`PLAY_SHARES` of the smallest and of the largest run's half-range (the rest of
-    the effects at ``values``); none when no effect of ``added`` has a play or the motion
-    is not imposed.
-
-    A model that absorbed a play's lag (Spencer, ``n = 0.38`` on the other-lab stand-in
-    with a 0.5 mm play) keeps a refit started at a small width in its basin: from 0.25 mm
-    the width went to 0, from 0.35, 0.5, 0.75 and 1 mm it reached 0.5 mm at the noise.
-    """
-    plays = [EFFECTS[e].play_param for e in added if EFFECTS[e].play_param]
-    if not plays or not data.exp.motion_imposed:
-        return []
-    half = [0.5 * float(np.ptp(th)) for th in data.theta if th.size]
-    widths = sorted({float(f"{s * h:.3g}") for s in PLAY_SHARES for h in (min(half), max(half))})
-    out = []
-    for w in widths:
-        par, _ = with_effects(fit, added, {**(values or {}), **dict.fromkeys(plays, w)})
-        out.append(par)
-    return out
-
-
-def play_refit(
-    data: FitData,
-    fit: OEFit,
-    added: Sequence[str],
-    values: dict | None,
-    max_nfev: int,
-    heldout: bool,
-) -> OEFit | None:
-    """``fit`` plus ``added`` fitted from the best-screened of :func:`play_starts` (None
-    when there are none or every screen diverged): a play width a refit from the current
-    optimum left unused."""
-    screened = []
-    for par in play_starts(data, fit, added, values):
-        with np.errstate(all="ignore"):
-            x, rss = screen_start(data, par, SCREEN_NFEV)
-        if np.isfinite(rss):
-            screened.append((rss, par, x))
-    if not screened:
-        return None
-    _, par, x = min(screened, key=lambda t: t[0])
-    par = par.like(dict(zip(par.names, map(float, x), strict=True)), par.effects)
-    with np.errstate(all="ignore"):
-        return OutputErrorFitter(data, par, max_nfev=max_nfev).fit(heldout=heldout)
 
 
 def fit_ok(fit: OEFit, before: OEFit) -> bool:

@@ -168,25 +168,3 @@ def test_loop_finds_the_backlash():
     assert p["ci95"][0] < R_B < p["ci95"][1]
     assert res.final.admissible is True
     assert res.unexplained is False
-
-
-def test_a_width_the_refit_left_unused_is_started_wide():
-    """The play's wide starts (:func:`hystdisc.closing.refit.play_refit`): shares of the
-    smallest and largest run's half-range, screened, the best fitted on; from the fit
-    that absorbed the play (no width) the refit reaches the drawn width at the noise."""
-    from hystdisc.closing.refit import PLAY_SHARES, play_refit, play_starts
-
-    data = _fit_data(generate(_model(R_B), "driven", currents=(0.0, 1.0), duration=2.0,
-                              noise=NOISE, seed=5, drives=DRIVES))  # fmt: skip
-    par = FamilyParametrization(FAMILY, "driven", TRUTH)
-    absorbed = OutputErrorFitter(data, par).fit(heldout=False)
-    assert absorbed.rms > 1.5 * NOISE
-    starts = play_starts(data, absorbed, ["backlash"])
-    widths = sorted(p.x0[list(p.names).index("r_b")] for p in starts)
-    expected = sorted({s * h for s in PLAY_SHARES for h in (0.05, 0.1)})  # the drives' amplitudes
-    assert widths == pytest.approx(expected, rel=1e-3)
-    assert play_starts(data, absorbed, ["coulomb"]) == []
-    fit = play_refit(data, absorbed, ["backlash"], None, 60, False)
-    assert fit.params["r_b"] == pytest.approx(R_B, rel=0.05)
-    assert fit.ci95["r_b"][0] < R_B < fit.ci95["r_b"][1]
-    assert fit.rms == pytest.approx(NOISE, rel=0.05)
