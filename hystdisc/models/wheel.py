@@ -299,45 +299,6 @@ def _mount_output(x, u, p):
     return term_torque(p[:N_BASE], u[0] - x[0], x[1], x[2], p[_EPS3])
 
 
-@numba.njit(cache=True, nogil=True)
-def _mount_rate_jac(x, u, p, need, jx, jp, work):
-    # work: dT/dc (N_BASE), dz'/d(b, n) (6)
-    d, v, z = x[0], x[1], x[2]
-    eps, m, k, c = p[_EPS3], p[_EPS3 + 1], p[_EPS3 + 2], p[_EPS3 + 3]
-    gT, gz = work[:N_BASE], work[N_BASE : N_BASE + 6]
-    tth, tw, tz = torque_grad(p[:N_BASE], u[0] - d, v, z, eps, need[:N_BASE], gT)
-    zw, zz = rate_grad(p[N_BASE : TERM_SIZE - 1], p[TERM_SIZE - 1], v, z,
-                       need[N_BASE:TERM_SIZE], gz)  # fmt: skip
-    T = term_torque(p[:N_BASE], u[0] - d, v, z, eps)
-    # d' = theta_dot - v
-    jx[0, 1] = -1.0
-    # m_w v' = k_w d + c_w (theta_dot - v) - T(theta - d, v, z)
-    jx[1, 0] = (k + tth) / m
-    jx[1, 1] = -(c + tw) / m
-    jx[1, 2] = -tz / m
-    # z' = R_z(v, z)
-    jx[2, 1] = zw
-    jx[2, 2] = zz
-    for i in range(N_BASE):
-        jp[1, i] = -gT[i] / m
-    for i in range(6):
-        jp[2, N_BASE + i] = gz[i]
-    jp[1, _EPS3 + 1] = -(k * d + c * (u[1] - v) - T) / (m * m)
-    jp[1, _EPS3 + 2] = d / m
-    jp[1, _EPS3 + 3] = (u[1] - v) / m
-
-
-@numba.njit(cache=True, nogil=True)
-def _mount_output_grad(x, u, p, need, gx, gp, work):
-    gT = work[:N_BASE]
-    tth, tw, tz = torque_grad(p[:N_BASE], u[0] - x[0], x[1], x[2], p[_EPS3], need[:N_BASE], gT)
-    gx[0] = -tth
-    gx[1] = tw
-    gx[2] = tz
-    for i in range(N_BASE):
-        gp[i] = gT[i]
-
-
 class TermsOnCompliantMount(StateSpaceModel):
     """A model in term form behind a compliant mount (driven experiments).
 
@@ -367,8 +328,6 @@ class TermsOnCompliantMount(StateSpaceModel):
     output = "torque"
     rate = staticmethod(_mount_rate)
     observe = staticmethod(_mount_output)
-    rate_jac = staticmethod(_mount_rate_jac)
-    observe_grad = staticmethod(_mount_output_grad)
     params = WHEEL_PARAMS
 
     def __init__(self, terms: TermModel) -> None:
