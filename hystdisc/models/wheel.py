@@ -55,10 +55,8 @@ from hystdisc.models.compiled import (
     N_BASE,
     TERM_SIZE,
     base_coefficients,
-    rate_grad,
     term_torque,
     term_vector,
-    torque_grad,
     vector_rate,
 )
 from hystdisc.models.effects import Effect, Structure
@@ -175,52 +173,6 @@ def _terms_rate(x, u, p, dx):
     dx[4] = (T - p[_MW + 1] * y - p[_MW + 2] * v) / p[_MW]
 
 
-@numba.njit(cache=True, nogil=True)
-def _terms_rate_jac(x, u, p, need, jx, jp, work):
-    # work: dT/dc (N_BASE), dR/dc_rig (N_BASE), dz'/d(b, n) (6)
-    th, w, z, y, v = x[0], x[1], x[2], x[3], x[4]
-    r_dot = w - v
-    eps, m = p[_EPS2], p[_MW]
-    gT, gR, gz = work[:N_BASE], work[N_BASE : 2 * N_BASE], work[2 * N_BASE : 2 * N_BASE + 6]
-    tth, tw, tz = torque_grad(p[:N_BASE], th - y, r_dot, z, eps, need[:N_BASE], gT)
-    rth, rw, _ = torque_grad(p[_RIG:_EPS2], th, w, 0.0, eps, need[_RIG:_EPS2], gR)
-    zw, zz = rate_grad(p[N_BASE : TERM_SIZE - 1], p[TERM_SIZE - 1], r_dot, z,
-                       need[N_BASE:TERM_SIZE], gz)  # fmt: skip
-    T = term_torque(p[:N_BASE], th - y, r_dot, z, eps)
-    jx[0, 1] = 1.0
-    # theta'' = -R(theta, theta_dot) - T(theta - y, theta_dot - y_dot, z)
-    jx[1, 0] = -(rth + tth)
-    jx[1, 1] = -(rw + tw)
-    jx[1, 2] = -tz
-    jx[1, 3] = tth
-    jx[1, 4] = tw
-    # z' = R_z(theta_dot - y_dot, z)
-    jx[2, 1] = zw
-    jx[2, 2] = zz
-    jx[2, 4] = -zw
-    jx[3, 4] = 1.0
-    # m_w y'' = T - k_w y - c_w y_dot
-    jx[4, 0] = tth / m
-    jx[4, 1] = tw / m
-    jx[4, 2] = tz / m
-    jx[4, 3] = -(tth + p[_MW + 1]) / m
-    jx[4, 4] = -(tw + p[_MW + 2]) / m
-    for i in range(N_BASE):
-        jp[1, i] = -gT[i]
-        jp[1, _RIG + i] = -gR[i]
-        jp[4, i] = gT[i] / m
-    for i in range(6):
-        jp[2, N_BASE + i] = gz[i]
-    jp[4, _MW] = -(T - p[_MW + 1] * y - p[_MW + 2] * v) / (m * m)
-    jp[4, _MW + 1] = -y / m
-    jp[4, _MW + 2] = -v / m
-
-
-@numba.njit(cache=True, nogil=True)
-def _output_grad(x, u, p, need, gx, gp, work):
-    gx[0] = 1.0
-
-
 class TermsOnCompliantWheel(StateSpaceModel):
     """A model in term form between the SAS beam and a compliant wheel (release).
 
@@ -249,8 +201,6 @@ class TermsOnCompliantWheel(StateSpaceModel):
     output = "theta"
     rate = staticmethod(_terms_rate)
     observe = staticmethod(_output)
-    rate_jac = staticmethod(_terms_rate_jac)
-    observe_grad = staticmethod(_output_grad)
     params = WHEEL_PARAMS
 
     def __init__(self, terms: TermModel) -> None:

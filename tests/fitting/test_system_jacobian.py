@@ -213,43 +213,6 @@ def test_exact_system_jacobian_matches_a_tight_central_difference(
     assert _column_errors(fd, ref).max() > _column_errors(J, ref).max()
 
 
-@pytest.mark.parametrize(
-    ("family", "effects"),
-    [
-        ("dahl", ("series_compliance",)),
-        ("bouc-wen", ("series_compliance", "cubic_stiffness", "quadratic_damping")),
-    ],
-)
-def test_a_term_model_on_a_compliant_wheel_has_exact_sensitivities(family, effects):
-    """The structural effect on a release rig (``TermsOnCompliantWheel``: the beam, the
-    hysteresis state and the wheel; the rig's cubic spring, a velocity-squared term,
-    z^n with n off 1) against central differences of runs integrated 100 times tighter;
-    its fits took forward differences before (the 5-run release set with a cubic spring:
-    87 % of the discovery's CPU in the wheel's integrations). The partials are checked
-    with the runs integrated as tightly as the reference (the wheel's inertia column is
-    1.5e-3 off at the fit's own tolerance, 4e-4 there, where the reference's own step
-    changes it by 2e-4); at the fit's tolerance the sensitivities beat the forward
-    differences they replace."""
-    from hystdisc.fitting.parametrization import family_parametrization
-
-    truth = Model(family).params
-    data = _data(family, truth, "release", noise=1e-3)
-    rng = np.random.default_rng(11)
-    start = {k: v * rng.uniform(0.8, 1.2) for k, v in truth.items() if k != "J"}
-    start.update({"n": 1.4, "k_w": 900.0, "c_w": 3.0, "m_w": 0.3, "k_3": 50.0, "c_q": 0.05})
-    par = family_parametrization(family, "release", start, effects)
-    fitter = OutputErrorFitter(data, par)
-    assert fitter.exact_system
-    v = np.concatenate([par.x0, data.nuisance_start(fitter.state)])
-    x, nu = v[: par.x0.size], v[par.x0.size :].reshape(data.n_runs, -1)
-    J = system_exact_jacobian(data, par, x, nu, fitter.masks, 1e-6)
-    ref = _reference(fitter, v)
-    assert J.shape == ref.shape
-    assert _column_errors(_jacobian(fitter, v, "exact", 1e-12, 1e-15), ref).max() < 1e-3
-    fd = OutputErrorFitter(data, par, jacobian_mode="forward").jacobian(v)
-    assert _column_errors(fd, ref).max() > _column_errors(J, ref).max()
-
-
 def test_the_output_is_the_integrators_to_the_bit():
     system, values, t, inputs, p = _spencer_run()
     one = simulate_system(system, t, system.initial_state(), values, 0.5, inputs).y
