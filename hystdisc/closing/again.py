@@ -19,9 +19,9 @@ when another family, refitted with it alone on all the data, fits them better th
 selected final model predicts its held-out conditions (:func:`screened`): only such a
 family can be selected with it. Behind a tanh damper with the same lag (driven stress set
 tanh/16/delay) the delay removed 7 % of Bouc-Wen's excess, so the families were never
-compared with it, and Bouc-Wen was selected at 7.2 times the noise; on the UTFSM damper as
-one CSV without its filter (the lag removed 8 % of Spencer's excess) the screen's refits
-are all that is added when no family fits better with it than Spencer predicts.
+compared with it, and Bouc-Wen was selected at 7.2 times the noise; with the screen tanh
+and the delay are selected at the noise. Where no other family fits better with the effect,
+the screen's refits (no held-out errors) are all it costs.
 """
 
 from __future__ import annotations
