@@ -12,14 +12,17 @@ is regressed on a broad library of named candidate forces in the states and the 
 * terms that differ in tension and compression (``[theta_dot>0]``,
   ``theta_dot*[theta_dot>0]``, ``theta*[theta>0]``);
 * the output of a play (backlash) operator of the motion against the motion, at several
-  widths (``play(theta, r)-theta``), and the velocity the play loses;
+  widths (``play(theta,0.0005)-theta``: one physical width for every run, a share of the
+  runs' median half-range), and the velocity the play loses;
 * products of the main ones with the current (``i*...``).
 
 Terms are selected by pysindy's forward regression (FROLS: orthogonal least squares, robust
 to a library of strongly correlated candidates) along its path scored by BIC (effective
-sample size of the record), and kept when they are stable: selected in at least
-:data:`MIN_INCLUSION` of bootstrap refits (pysindy's ``EnsembleOptimizer``, stability
-selection). What is selected is mapped to a catalogued effect whose torque terms it
+sample size of the record) sets how many terms a fit may take; a term is kept when it is
+stable: selected in at least :data:`MIN_INCLUSION` of bootstrap refits of that size
+(pysindy's ``EnsembleOptimizer``; stability selection as Meinshausen and Bühlmann define
+it, whether or not the one full-data path holds it: where several candidates are about
+equally correlated with the residual, which of them that path takes first is chance). What is selected is mapped to a catalogued effect whose torque terms it
 covers, a play term to the catalogued play (``backlash``) (:attr:`ResidualTerms.effects`:
 the loop tries those it has not refitted by output error,
 :func:`hystdisc.pipeline.close.library_effects`); the rest
@@ -55,7 +58,8 @@ from hystdisc.stats import bic
 MIN_INCLUSION = 0.8
 #: Bootstrap refits of the stability selection.
 N_MODELS = 40
-#: Widths of the play (backlash) operator, in units of each run's motion amplitude.
+#: Widths of the play (backlash) operator, in units of the runs' median half-range of the
+#: motion: one physical width for every run (a damper's play does not scale with the stroke).
 PLAY_WIDTHS = (0.02, 0.05, 0.1)
 #: Velocity scales of the ``tanh`` terms, in units of the largest ``|theta_dot|``.
 TANH_SCALES = (0.02, 0.1)
@@ -123,9 +127,9 @@ class ResidualTerms:
         """The selected terms no catalogued effect accounts for."""
         return [t for t in self.terms if not t.effect]
 
-    def play_share(self) -> float | None:
-        """The relative width (share of each run's amplitude) of the largest selected
-        play term; None when none was selected."""
+    def play_found(self) -> float | None:
+        """The width (in the motion's units) of the largest selected play term; None when
+        none was selected."""
         widths = [play_width(t.name) for t in self.terms]  # largest contribution first
         return next((r for r in widths if r is not None), None)
 
@@ -174,8 +178,9 @@ Signals = tuple[np.ndarray, np.ndarray, np.ndarray, float, float]
 Column = Callable[[np.ndarray, np.ndarray, np.ndarray, float, np.ndarray], np.ndarray]
 
 
-def _open_terms(levels: Sequence[float], w_max: float) -> dict[str, Column]:
-    """The candidates beyond the catalogue: ``name -> f(theta, theta_dot, z, i, t)``."""
+def _open_terms(levels: Sequence[float], w_max: float, half: float) -> dict[str, Column]:
+    """The candidates beyond the catalogue: ``name -> f(theta, theta_dot, z, i, t)``;
+    ``w_max`` is the largest ``|theta_dot|``, ``half`` the runs' median half-range."""
     pos = lambda a: (a > 0).astype(float)  # noqa: E731
     out: dict[str, Column] = {
         "i": lambda th, w, z, i, t: np.full(th.size, i),
@@ -195,42 +200,54 @@ def _open_terms(levels: Sequence[float], w_max: float) -> dict[str, Column]:
         v0 = s * w_max
         out[f"tanh(theta_dot/{v0:.3g})"] = lambda th, w, z, i, t, v0=v0: np.tanh(w / v0)
         out[f"i*tanh(theta_dot/{v0:.3g})"] = lambda th, w, z, i, t, v0=v0: i * np.tanh(w / v0)
-    for r in PLAY_WIDTHS:
+    for share in PLAY_WIDTHS:
+        r = float(f"{share * half:.3g}")  # the width its name says
 
         def gap(th, w, z, i, t, r=r):
-            amp = 0.5 * float(np.ptp(th)) if th.size else 0.0
-            return play(np.ascontiguousarray(th, dtype=np.float64), r * amp) - th
+            return play(np.ascontiguousarray(th, dtype=np.float64), r) - th
 
         def lost(th, w, z, i, t, r=r):
             g = gap(th, w, z, i, t, r)
             return np.gradient(g, t) if th.size > 1 else np.zeros(th.size)
 
-        out[f"play(theta,{r:g}A)-theta"] = gap
-        out[f"d/dt[play(theta,{r:g}A)-theta]"] = lost
-        out[f"i*d/dt[play(theta,{r:g}A)-theta]"] = lambda th, w, z, i, t, f=lost: (
+        out[f"play(theta,{r:g})-theta"] = gap
+        out[f"d/dt[play(theta,{r:g})-theta]"] = lost
+        out[f"i*d/dt[play(theta,{r:g})-theta]"] = lambda th, w, z, i, t, f=lost: (
             i * f(th, w, z, i, t)
         )
     return {k: f for k, f in out.items() if k not in TORQUE_TERMS}  # catalogued: one name
 
 
 def play_width(name: str) -> float | None:
-    """The relative width ``r`` of a play term's name (``play(theta,0.02A)-theta`` and
-    its derivatives: 0.02, the share of each run's amplitude); None for another term.
+    """The width ``r`` of a play term's name (``play(theta,0.0005)-theta`` and its
+    derivatives: 0.0005, in the motion's units); None for another term.
 
     Examples
     --------
-    >>> play_width("i*d/dt[play(theta,0.05A)-theta]"), play_width("theta^2")
-    (0.05, None)
+    >>> play_width("i*d/dt[play(theta,0.0005)-theta]"), play_width("theta^2")
+    (0.0005, None)
     """
     head = "play(theta,"
     at = name.find(head)
     if at < 0:
         return None
-    end = name.find("A)", at)
+    end = name.find(")", at)
     try:
         return float(name[at + len(head) : end])
     except ValueError:
         return None
+
+
+def median_half_range(theta: Sequence[np.ndarray]) -> float:
+    """The median over runs of half the motion's range (the play widths' unit).
+
+    Examples
+    --------
+    >>> median_half_range([np.array([-0.2, 0.2]), np.array([0.0, 0.1]), np.array([])])
+    0.1
+    """
+    half = [0.5 * float(np.ptp(th)) for th in theta if np.size(th)]
+    return float(np.median(half)) if half else 0.0
 
 
 def candidate_library(eq, tm: TermModel) -> tuple[list[str], np.ndarray, np.ndarray, np.ndarray]:
@@ -263,7 +280,7 @@ def candidate_library(eq, tm: TermModel) -> tuple[list[str], np.ndarray, np.ndar
         float(np.max(np.abs(w[m]))) if m.any() else 0.0
         for w, m in zip(eq.theta_dot, eq.rows, strict=True)
     )
-    opened = _open_terms(levels, max(w_max, 1e-300))
+    opened = _open_terms(levels, max(w_max, 1e-300), median_half_range(eq.theta))
     names = catalogue + list(opened)
     inertia = get_experiment(eq.experiment).inertia_identifiable
     A_rows, G_rows, res = [], [], []
@@ -360,7 +377,7 @@ def regress_output_residual(data, fit, seed: int = 0) -> ResidualTerms:
         w = np.gradient(th, t)
         motion.append((t, th, w))
         w_max = max(w_max, float(np.max(np.abs(w[data.mask[k]]))))
-    opened = _open_terms(levels, max(w_max, 1e-300))
+    opened = _open_terms(levels, max(w_max, 1e-300), median_half_range(data.theta))
     catalogue = [k for k in TORQUE_TERMS if "z" not in k and "^m" not in k]
     names = catalogue + list(opened)
     cols = []
@@ -392,6 +409,7 @@ def select_terms(
     Gp = G - q @ (q.T @ G)
     sc = np.sqrt((Gp**2).mean(axis=0))
     usable = sc > 1e-9 * max(float(sc.max()), 1e-300)
+    usable &= ~_repeated(Gp, sc, usable)
     names = [n for n, u in zip(names, usable, strict=True) if u]
     Gp, sc = Gp[:, usable], sc[usable]
     rss0 = float(r_perp @ r_perp)
@@ -413,9 +431,9 @@ def select_terms(
             best_k, best_b = k, b
     if best_k == 0:
         return out
-    support = np.abs(np.asarray(frols.history_[best_k - 1]).ravel()) > 0
     probs = stable_terms(Gp / sc, r_perp, names, best_k, seed)
-    keep = support & np.array([probs[nm] >= MIN_INCLUSION for nm in names])
+    keep = np.array([probs[nm] >= MIN_INCLUSION for nm in names])
+    keep = _pruned(Gp, r_perp, keep, n_eff)
     if not keep.any():
         return out
     c, *_ = np.linalg.lstsq(Gp[:, keep], r_perp, rcond=None)
@@ -444,3 +462,49 @@ def select_terms(
     out.explained = 1.0 - float(e @ e) / rss0
     out.effects = effects
     return out
+
+
+def _repeated(G: np.ndarray, sc: np.ndarray, usable: np.ndarray) -> np.ndarray:
+    """Columns that repeat an earlier one (up to scale: ``|corr| > 1 - 1e-9``); the first
+    keeps the name (the catalogue's come first). Two copies of one column would share the
+    bootstrap refits' picks between them, and neither might reach the inclusion a term
+    needs (``sign(theta_dot)*|theta_dot|^0.5`` is the catalogued ``^m`` at its start)."""
+    out = np.zeros(G.shape[1], dtype=bool)
+    cols = np.flatnonzero(usable)
+    U = G[:, cols] / (sc[cols] * np.sqrt(G.shape[0]))
+    C = np.abs(U.T @ U)
+    for a in range(cols.size):
+        if not out[cols[a]]:
+            for b in range(a + 1, cols.size):
+                if C[a, b] > 1.0 - 1e-9:
+                    out[cols[b]] = True
+    return out
+
+
+def _pruned(G: np.ndarray, r: np.ndarray, keep: np.ndarray, n_eff: float) -> np.ndarray:
+    """The stable set without its terms that do not earn their place together: the term
+    whose removal lowers the set's BIC most is removed, until none does. A term stable in
+    the bootstrap refits of a larger path may explain nothing beside the other stable
+    terms alone (it was picked to correct terms that did not reach the inclusion)."""
+    keep = keep.copy()
+    n = r.size
+
+    def score(mask: np.ndarray) -> float:
+        if not mask.any():
+            return bic(float(r @ r), n, 0, n_eff=n_eff)
+        c, *_ = np.linalg.lstsq(G[:, mask], r, rcond=None)
+        e = r - G[:, mask] @ c
+        return bic(float(e @ e), n, int(mask.sum()), n_eff=n_eff)
+
+    now = score(keep)
+    while keep.any():
+        trials = []
+        for j in np.flatnonzero(keep):
+            m = keep.copy()
+            m[j] = False
+            trials.append((score(m), j))
+        best, j = min(trials)
+        if not best < now:
+            break
+        keep[j], now = False, best
+    return keep

@@ -13,8 +13,6 @@ from __future__ import annotations
 import warnings
 from collections.abc import Callable
 
-import numpy as np
-
 from hystdisc.closing import LoopResult, close_loop
 from hystdisc.closing.again import compare_again
 from hystdisc.closing.open_library import (
@@ -81,25 +79,24 @@ def _loop(state: State, fit: OEFit, restart: Callable | None) -> LoopResult:
 def library_effects(state: State, fit: OEFit) -> dict[str, dict[str, float]]:
     """The loop's open library (:func:`~hystdisc.closing.loop.augment`'s ``library``):
     the catalogued effects the open library finds in ``fit``'s residual, each with start
-    values (a play term: the catalogued play at the term's width times the runs' median
-    half-range); nothing when the library fails.
+    values (a play term: the catalogued play at the term's width); nothing when the
+    library fails.
 
     The catalogue's own diagnosis ranks an effect by its local signature at the current
     optimum, which a play's misses: on the UTFSM damper its secant evidence was 0.012,
-    while the library selected ``play(theta,0.02A)-theta`` in every bootstrap refit."""
+    while the library selected a play term in every bootstrap refit."""
     lib = state.failures.guard("open library", open_library, state, fit)
     if lib is None:
         return {}
     state.open_library = lib  # the final fit's, when the loop ends on ``fit``
     state.open_library_of = fit
     out: dict[str, dict[str, float]] = {}
-    share = lib.play_share()
+    width = lib.play_found()
     for name in lib.effects:
         eff = EFFECTS[name]
         out[name] = {}
-        if eff.play_param and share is not None:
-            half = [0.5 * float(np.ptp(th)) for th in state.fd.theta if th.size]
-            out[name][eff.play_param] = share * float(np.median(half))
+        if eff.play_param and width is not None:
+            out[name][eff.play_param] = width
     return out
 
 
