@@ -409,6 +409,7 @@ def augment(
             if extra:
                 say(f"closing the loop: the open library points at {', '.join(extra)}")
                 forced, forced_values = tuple(extra), extra
+                out.pointed = {n: dict(v) for n, v in extra.items()}
                 continue
         break
     out.fit = current

@@ -335,6 +335,9 @@ class LoopResult:
         True when structure remains that no catalogued effect removes.
     unexplained_text : str or None
         That structure in plain words.
+    pointed : dict of str to dict
+        The effects the open library pointed at (refitted in the library's round), each
+        with the start values it gave (:func:`~hystdisc.closing.loop.augment`).
     """
 
     base: OEFit
@@ -347,3 +350,4 @@ class LoopResult:
     residual: ResidualVerdict | None = None
     unexplained: bool = False
     unexplained_text: str | None = None
+    pointed: dict[str, dict[str, float]] = field(default_factory=dict)

@@ -159,7 +159,7 @@ def test_a_delay_the_selected_family_absorbed_enters_the_comparison_again(monkey
     final = fit(-1000.0, 0.134)
     wanted = NS(name="channel_delay", ok=True, improves=True, significant=True,
                 admissible=True, predicts=False)  # fmt: skip
-    loop = NS(fit=final, effects=[], tried=[wanted])
+    loop = NS(fit=final, effects=[], tried=[wanted], pointed={})
     refits = {"bouc-wen": fit(-1200.0, 0.130, ("channel_delay",)),
               "tanh": fit(-3000.0, 0.012, ("channel_delay",))}  # fmt: skip
     seen = []
@@ -198,6 +198,55 @@ def test_a_delay_the_selected_family_absorbed_enters_the_comparison_again(monkey
     wanted.bic_after = -1003.0
     out = ag.compare_again(table, "bouc-wen", loop, ctx, {"channel_delay": {"tau_d": 0.002}})
     assert out.family == "bouc-wen" and len(screen) == 2 and len(seen) == 2
+
+
+def test_a_play_the_library_read_enters_the_comparison_when_another_family_fits_with_it(
+    monkeypatch,
+):
+    # issue 35, the other-lab stand-in: the library named the true 0.5 mm of play on the
+    # residual of the selected bouc-wen-std, whose refit with it collapsed; Spencer, refitted
+    # with the play from the library's width, fits far better than bouc-wen-std predicts
+    from types import SimpleNamespace as NS
+
+    import hystdisc.closing.again as ag
+    import hystdisc.closing.reselect as rs
+
+    def fit(bic, heldout, rms=None, effects=()):
+        return NS(bic=bic, heldout_rms=heldout, rms=rms, n_params=8, par=NS(effects=effects),
+                  params={}, term_part=NS(torque={}), is_system=False)  # fmt: skip
+
+    collapsed = NS(name="backlash", ok=True, improves=False, significant=False,
+                   admissible=True, predicts=False)  # fmt: skip
+    loop = NS(fit=fit(-1000.0, 106.0), effects=[], tried=[collapsed],
+              pointed={"backlash": {"r_b": 0.0005}})  # fmt: skip
+    screen, seen = [], []
+
+    def alone(table, effects, data, eq, values, shapes, max_nfev, heldout, mapper):
+        screen.append((sorted(table), effects, values, heldout))
+        return {n: fit(0.0, None, rms[n], ("backlash",)) for n in table}
+
+    refits = {"bouc-wen-std": fit(-1100.0, 105.0, 100.0, ("backlash",)),
+              "spencer": fit(-3000.0, 24.4, 24.3, ("backlash",))}  # fmt: skip
+    monkeypatch.setattr(ag, "refit_families", alone)
+    monkeypatch.setattr(rs, "refit_families", lambda *a, **kw: seen.append(a) or dict(refits))
+    monkeypatch.setattr(rs, "check_admissible", lambda *args: NS(ok=True, violations=[]))
+    monkeypatch.setattr(ag, "reduce_family", lambda *args: None)
+    closed = NS(fit=refits["spencer"], effects=["backlash"])
+    ctx = rs.Context(NS(), None, None, lambda f: closed, lambda f: None)
+    table = dict.fromkeys(refits)
+    rms = {"spencer": 130.0}  # above bouc-wen-std's held-out 106: not compared again
+    out = ag.compare_again(table, "bouc-wen-std", loop, ctx)
+    assert screen == [(["spencer"], ["backlash"], {"r_b": 0.0005}, False)] and seen == []
+    assert out.family == "bouc-wen-std" and out.reselection is None
+    rms["spencer"] = 24.3  # below it: compared again with the play, from its width
+    out = ag.compare_again(table, "bouc-wen-std", loop, ctx)
+    (args,) = seen
+    assert args[1] == ["backlash"] and args[4] == {"r_b": 0.0005}  # effects, start
+    assert out.family == "spencer" and out.loop is closed
+    # an effect the loop accepted is not screened again
+    loop.effects = ["backlash"]
+    ag.compare_again(table, "bouc-wen-std", loop, ctx)
+    assert len(screen) == 2
 
 
 def test_the_record_says_what_was_compared(base):
