@@ -134,6 +134,7 @@ def build_results(state: State) -> Results:
     adm = state.admissibility
     currents = current_dependence(state)
     one = currents is not None
+    fitted = {n: int(np.asarray(m).sum()) for n, m in zip(fd.names, fd.mask, strict=True)}
     fams = {
         n: family_entry(n, f, state.terms, adm.get(n), one_current=one)
         for n, f in state.family_fits.items()
@@ -167,7 +168,9 @@ def build_results(state: State) -> Results:
             else _no_loop_residual(state)
         ),
         "runs": [
-            RunRecord.make(name=r.name, current=r.current, samples=int(r.t.size))
+            RunRecord.make(
+                name=r.name, current=r.current, samples=int(r.t.size), fitted=fitted.get(r.name)
+            )
             for r in dataset.runs
         ],
         "seed": opts.seed,

@@ -572,6 +572,12 @@ class RunRecord(Record):
         Coil current in A.
     samples : int
         Samples in the run as read.
+    fitted : int or None
+        Samples that enter the fit's residual and every RMS the results state: a driven
+        run's start until its motion has swept its range once (the unknown initial
+        hysteretic state), a smoother's ends and glitches are left out. Where runs differ
+        in noise (a filter of a window per run), the noise of these samples is the RMS's
+        floor, not that of every sample.
     extra : dict
         Keys this version does not know (kept on a round trip).
     """
@@ -579,6 +585,7 @@ class RunRecord(Record):
     name: str = ""
     current: float | None = None
     samples: int | None = None
+    fitted: int | None = None
     extra: dict[str, Any] = field(default_factory=dict, repr=False)
 
 

@@ -99,6 +99,23 @@ def test_filtered_noise_floor():
     assert sd.prefilter_windows("white") == [1] * 9
 
 
+def test_the_floor_is_the_noise_of_the_samples_the_fit_counts():
+    """Under the prefilter each run has its own noise (``s/sqrt(W)``), and the fit counts
+    a driven run only once its motion has swept its range (``runs[].fitted``): the floor
+    is the noise of those samples. The counts of ``bingham/11/prefilter``: 1446, 1858 and
+    1941 of 2000 (windows 100, 25, 10)."""
+    case = sd.Case("bingham", 11, "prefilter", {}, 1.0)
+    fitted = [1446] * 3 + [1858] * 3 + [1941] * 3
+    s = case.noise
+    var = (1446 / 100 + 1858 / 25 + 1941 / 10) / (1446 + 1858 + 1941)
+    assert case.force_floor_on(fitted) == pytest.approx(s * np.sqrt(var), rel=1e-12)
+    assert case.force_floor_on(fitted) == pytest.approx(1.041 * case.force_floor, rel=1e-3)
+    assert case.n_eff_on(fitted) == pytest.approx(3 * (14.46 + 74.32 + 194.1))
+    assert case.force_floor_on(None) == case.force_floor  # older results: every sample
+    white = sd.Case("bingham", 11, "white", {}, 1.0)  # one noise: the samples do not matter
+    assert white.force_floor_on(fitted) == pytest.approx(white.force_floor, rel=1e-12)
+
+
 def test_the_commands_write_the_suites_dataset(tmp_path):
     p, rej, scale = sd.sample_set("dahl", 0)
     for cond in ("enc16", "prefilter", "delay"):
