@@ -628,8 +628,7 @@ def evaluate(res: dict, case: Case, motion_floor: float = 0.0) -> dict:
         "params": not judged["outside_data"],
         # at most 10 % above the floor; at least 10 % below the force noise alone (no
         # model predicts the force noise; the motion's share is an estimate's, see above)
-        "rms": (1.0 - RMS_TOL) * s_t <= heldout_ratio * floor
-        and heldout_ratio <= 1.0 + RMS_TOL,
+        "rms": (1.0 - RMS_TOL) * s_t <= heldout_ratio * floor and heldout_ratio <= 1.0 + RMS_TOL,
         "ci": all(z <= zj for z in zs.values()),
     }
     noise = res.get("noise") or {}
@@ -670,6 +669,25 @@ def evaluate(res: dict, case: Case, motion_floor: float = 0.0) -> dict:
         "noise_method": noise.get("method"),
         "unexplained": res.get("unexplained"),
     }
+
+
+def with_fitted(res: dict, case: Case, work: Path) -> dict:
+    """``res`` with each run's fitted samples (``runs[].fitted``), which a
+    ``results.json`` written before they were recorded lacks: counted from the case's
+    data in ``work`` as the fit counts them (:func:`hystdisc.measurement.prepare_data`;
+    they depend on the data alone)."""
+    runs = res.get("runs") or []
+    if not runs or all(isinstance(r.get("fitted"), int) for r in runs):
+        return res
+    import hystdisc
+    from hystdisc.measurement.prepare import prepare_data
+
+    stem = case.name.replace("/", "_")
+    rig = work / f"{stem}.rig.toml"
+    ds = hystdisc.load(work / f"{stem}.csv", rig=rig if rig.exists() else None)
+    _, fd, _, _ = prepare_data(ds)
+    counts = {n: int(np.sum(m)) for n, m in zip(fd.names, fd.mask, strict=True)}
+    return {**res, "runs": [{**r, "fitted": counts.get(r.get("name"))} for r in runs]}
 
 
 def run_case(case: Case, work: Path) -> dict:
@@ -969,7 +987,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--re-evaluate",
         action="store_true",
-        help="judge the cases kept in --work again from their results.json (no new run)",
+        help="judge the cases kept in --work again from their results.json (no new run; "
+        "each run's fitted samples counted from its data when the results lack them)",
     )
     ap.add_argument(
         "--release-reading",
@@ -1055,7 +1074,7 @@ def main(argv: list[str] | None = None) -> int:
                 case.family, case.params, case.seed, CONDITIONS[case.condition], case.duration
             )
             seconds = rec.get("seconds")
-            rec = evaluate(json.loads(res.read_text()), case, s_m)
+            rec = evaluate(with_fitted(json.loads(res.read_text()), case, work), case, s_m)
             rec.update(motion_estimate=est, seconds=seconds)
             done.write_text(json.dumps(rec, default=str))
         if rec is None:
