@@ -252,7 +252,8 @@ def augment(
         ``library(fit)``: the catalogued effects an open regression of ``fit``'s residual
         points at, each with start values (:data:`Library`). Called once, when a round
         accepts nothing while the residual is above the noise; the effects it names that
-        no round refitted are refitted in one more round, first and from those values.
+        no round refitted, or that it gives values for (a play's width), are refitted in
+        one more round, first and from those values (``LoopResult.pointed``).
     noise_samples : list of ndarray, optional
         A sample of the measurement noise (period-to-period differences): the final
         residual's whiteness is judged against its spectrum
@@ -401,14 +402,18 @@ def augment(
         if not asked and current.rms > good_rms:
             asked = True
             tried = {v.name for v in out.tried}
+            # an effect a round refitted is refitted again only from the values the library
+            # read off the residual (a play's width): its catalogued start may have been
+            # out of reach (the other-lab stand-in's 0.5 mm play, refitted from 0.1 mm)
             extra = {
                 n: dict(v)
                 for n, v in library(current).items()
-                if n in candidates and n not in tried and n not in out.effects
+                if n in candidates and n not in out.effects and (n not in tried or v)
             }
             if extra:
                 say(f"closing the loop: the open library points at {', '.join(extra)}")
                 forced, forced_values = tuple(extra), extra
+                rejected -= set(extra)
                 out.pointed = {n: dict(v) for n, v in extra.items()}
                 continue
         break
