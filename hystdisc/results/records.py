@@ -20,7 +20,7 @@ from typing import Any
 
 from hystdisc.models import SHEAR_M0, SHEAR_TERM, TermModel
 from hystdisc.results.record import Record, list_of, record_of, table_of
-from hystdisc.results.sections import SystemModelRecord
+from hystdisc.results.sections import RunRecord, SystemModelRecord
 
 
 def term_model_to_dict(tm: TermModel) -> dict:
@@ -557,35 +557,6 @@ class FinalResult(Record):
     notes: list[str] = field(default_factory=list)
     admissible: bool | None = None
     violations: list[str] = field(default_factory=list)
-    extra: dict[str, Any] = field(default_factory=dict, repr=False)
-
-
-@dataclass
-class RunRecord(Record):
-    """One run of the dataset.
-
-    Attributes
-    ----------
-    name : str
-        Run name.
-    current : float
-        Coil current in A.
-    samples : int
-        Samples in the run as read.
-    fitted : int or None
-        Samples that enter the fit's residual and every RMS the results state: a driven
-        run's start until its motion has swept its range once (the unknown initial
-        hysteretic state), a smoother's ends and glitches are left out. Where runs differ
-        in noise (a filter of a window per run), the noise of these samples is the RMS's
-        floor, not that of every sample.
-    extra : dict
-        Keys this version does not know (kept on a round trip).
-    """
-
-    name: str = ""
-    current: float | None = None
-    samples: int | None = None
-    fitted: int | None = None
     extra: dict[str, Any] = field(default_factory=dict, repr=False)
 
 

@@ -402,6 +402,35 @@ class OutliersRecord(Record):
     extra: dict[str, Any] = field(default_factory=dict, repr=False)
 
 
+@dataclass
+class RunRecord(Record):
+    """One run of the dataset.
+
+    Attributes
+    ----------
+    name : str
+        Run name.
+    current : float
+        Coil current in A.
+    samples : int
+        Samples in the run as read.
+    fitted : int or None
+        Samples that enter the fit's residual and every RMS the results state: a driven
+        run's start until its motion has swept its range once (the unknown initial
+        hysteretic state), a smoother's ends and glitches are left out. Where runs differ
+        in noise (a filter of a window per run), the noise of these samples is the RMS's
+        floor, not that of every sample.
+    extra : dict
+        Keys this version does not know (kept on a round trip).
+    """
+
+    name: str = ""
+    current: float | None = None
+    samples: int | None = None
+    fitted: int | None = None
+    extra: dict[str, Any] = field(default_factory=dict, repr=False)
+
+
 #: The section records by their ``results.json`` key.
 SECTIONS: dict[str, type[Record]] = {
     "conditions": ConditionsRecord,
@@ -456,5 +485,6 @@ __all__ = [
     "ReductionRecord",
     "ReselectionRecord",
     "RunEnvelopeRecord",
+    "RunRecord",
     "SystemModelRecord",
 ]
