@@ -195,11 +195,13 @@ def pointed(table: Mapping[str, OEFit], family: str, loop: Any, ctx: Context) ->
     library's values (no held-out errors), fits better than ``loop.fit`` predicts its
     held-out conditions (as :func:`screened`).
 
-    The library reads a play's width off the residual, but the refit of the selected
-    family may not reach it: on the other-lab stand-in (a Spencer damper with 0.5 mm of
-    backlash and a bias per level) the library named the true 0.5 mm on the residual of
-    bouc-wen-std, selected at a held-out error of 106 N, whose refit with the play
-    collapsed to none, while Spencer with the play from that width fits at 24 N.
+    The library reads a play's width off the residual, but the selected family's refit
+    with it may not predict better: on the other-lab stand-in (a Spencer damper with 0.5 mm
+    of backlash and a bias per level) the library named the true 0.5 mm on the residual of
+    Spencer + shear_thinning + current_bias (held-out 104.7 N), whose refit with the play
+    did not predict better; Bingham and tanh with the play fitted better than that, and
+    compared again with it tanh was selected with the play (0.51 mm) and a bias, held out
+    at 45.5 N.
 
     Examples
     --------

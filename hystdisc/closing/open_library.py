@@ -22,8 +22,10 @@ sample size of the record) sets how many terms a fit may take; a term is kept wh
 stable: selected in at least :data:`MIN_INCLUSION` of bootstrap refits of that size
 (pysindy's ``EnsembleOptimizer``; stability selection as Meinshausen and Bühlmann define
 it, whether or not the one full-data path holds it: where several candidates are about
-equally correlated with the residual, which of them that path takes first is chance). What is selected is mapped to a catalogued effect whose torque terms it
-covers, a play term to the catalogued play (``backlash``) (:attr:`ResidualTerms.effects`:
+equally correlated with the residual, which of them that path takes first is chance).
+The stable set is then pruned by BIC (a term that only corrected unkept ones goes), and
+identical columns keep one name. What is selected is mapped to a catalogued effect whose
+torque terms it covers, a play term to the catalogued play (``backlash``) (:attr:`ResidualTerms.effects`:
 the loop tries those it has not refitted by output error,
 :func:`hystdisc.pipeline.close.library_effects`); the rest
 is a *discovered effect*, reported with its equation. Nothing here is accepted: a term
