@@ -86,7 +86,8 @@ How success is read (issue 33 item 5; :func:`evaluate`): success = all five
         once, half a period, which takes more of the long-window (low-noise) slow runs, so
         the floor over every sample was 4 % below the noise the fit meets: on
         ``bingham/11/prefilter`` the realized filtered noise is 0.00468 over every sample
-        and 0.00489 over the fitted ones, where the fit's RMS is 0.00488), ``s_m`` the motion noise propagated into the torque where there is some
+        and 0.00489 over the fitted ones, where the fit's RMS is 0.00488), ``s_m`` the
+        motion noise propagated into the torque where there is some
         (``motion``, ``enc16``): the RMS change of the *true* model's torque when it is
         driven by the best estimate of the motion from its measurement instead of the exact
         motion (of cubic Savitzky-Golay filters of several windows and a fit of 3 harmonics
@@ -494,11 +495,11 @@ class Case:
         """The force noise as recorded over the samples the fit counts (``fitted``: each
         run's, past the filter's start-up: ``noise / sqrt(W)`` there); every sample
         (:attr:`force_floor`) when not known."""
-        windows = prefilter_windows(self.condition)
-        if fitted is None or len(fitted) != len(windows) or not sum(fitted):
+        if fitted is None or len(fitted) != len(prefilter_windows(self.condition)):
             return self.force_floor
-        var = sum(f / w for f, w in zip(fitted, windows, strict=True)) / sum(fitted)
-        return self.noise * math.sqrt(var)
+        if not sum(fitted):  # nothing fitted: no samples to weight
+            return self.force_floor
+        return self.noise * math.sqrt(self.n_eff_on(fitted) / sum(fitted))
 
     def n_eff_on(self, fitted: list[int] | None) -> float:
         """Independent noise samples among the fitted ones (:attr:`n_eff` when not known)."""

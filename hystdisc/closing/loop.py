@@ -403,8 +403,8 @@ def augment(
             asked = True
             tried = {v.name for v in out.tried}
             # an effect a round refitted is refitted again only from the values the library
-            # read off the residual (a play's width): its catalogued start may have been
-            # out of reach (the other-lab stand-in's 0.5 mm play, refitted from 0.1 mm)
+            # read off the residual (a play's width): its catalogued start may be out of
+            # reach (the other-lab stand-in's 0.5 mm play collapsed to none from it)
             extra = {
                 n: dict(v)
                 for n, v in library(current).items()
@@ -414,7 +414,7 @@ def augment(
                 say(f"closing the loop: the open library points at {', '.join(extra)}")
                 forced, forced_values = tuple(extra), extra
                 rejected -= set(extra)
-                out.pointed = {n: dict(v) for n, v in extra.items()}
+                out.pointed = dict(extra)
                 continue
         break
     out.fit = current
