@@ -133,7 +133,7 @@ def term_rate(b, n, w, z):
     return r
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def rate_stiffness(b, n, w, z):
     """``|d(dz/dt)/dz|`` and ``|d(dz/dt)/dw|`` (for the sub-step choice)."""
     aw = abs(w)
@@ -163,7 +163,7 @@ def _sign(x):
     return 1.0 if x > 0.0 else (-1.0 if x < 0.0 else 0.0)
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def torque_grad(c, th, w, z, eps, need, g):
     """Partials of :func:`term_torque`: returns ``(dT/dtheta, dT/dtheta_dot, dT/dz)`` and
     writes ``dT/dc[i]`` to ``g[i]`` (``need``: :data:`N_BASE` flags)."""
@@ -201,7 +201,7 @@ def torque_grad(c, th, w, z, eps, need, g):
     return dth, dw, dz
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def rate_grad(b, n, w, z, need, g):
     """Partials of :func:`term_rate`: returns ``(dR/dtheta_dot, dR/dz)`` and writes
     ``dR/db[0..4]`` to ``g[0..4]``, ``dR/dn`` to ``g[5]`` (``need``: 6 flags, same order)."""

@@ -161,7 +161,7 @@ def mech_batch_kernel(
                 break
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def _z_rk4(b, n, z, wa, wb, fa, fc, h):
     """One RK4 step of z from fraction fa to fc of a sample interval (velocity linear)."""
     hs = h * (fc - fa)

@@ -56,7 +56,7 @@ def _needs(act):
     return need
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def _stage_sens(c, b, n, J, u, th, w, z, eps, kw, act, need, needr, gT, gR, sc, src, dst):
     """Derivative of one mechanical stage ``(theta', theta'', z')`` at ``(th, w, z)`` along
     each direction: the state's derivatives are rows ``src .. src + 2`` of ``sc``, the
@@ -205,7 +205,7 @@ def mech_sens_batch_kernel(
                 break
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def _z_rk4_sens(b, n, z, wa, wb, fa, fc, h, cols, act, sc, src, moving, ra, rc, dst, need, g):
     """:func:`~hystdisc.simulation.kernels._z_rk4` with the derivative of the new ``z``
     along the directions ``act[cols]``: the start's derivatives are row ``src`` of ``sc``,
@@ -281,7 +281,7 @@ def _z_segment_sens(b, n, z, wa, wb, f0, f1, h, m, cols, act, sc, need, g):
     return z
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def _torque_sens(c, th, w, z, eps, act, need, gT, sc, sens, k):
     """Derivative of the torque at an imposed motion along each direction (z's: row 4 of
     ``sc``), written to ``sens[k]``."""
