@@ -12,8 +12,12 @@ the medians and their ratio A / B:
 3. **In process**: ``Discovery(n_jobs=1).fit`` on the same data in a fresh interpreter
    after a warm-up fit, CPU time (``time.process_time``), and the answer (family and
    parameters to 6 significant digits), which must be the same for A and B.
+4. **A fresh install's first run**: ``hystdisc discover data_synth/driven_bouc-wen.csv``
+   (term and state-space families, their exact sensitivities) with an empty numba cache
+   of its own (``NUMBA_CACHE_DIR`` in a new folder, no warm-up): what the kernels' compile
+   costs a new user and a fresh CI clone.
 
-Run:  python benchmarks/ab_speed.py A_DIR B_DIR [--repeats 3] [--out FILE.md]
+Run:  python benchmarks/ab_speed.py A_DIR B_DIR [--repeats 3] [--cases 1,2,3,4] [--out FILE.md]
       (A_DIR, B_DIR: repository checkouts, e.g. git worktrees of two commits)
 """
 
@@ -32,6 +36,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT / "data_synth" / "bouc-wen.csv"
+DRIVEN = ROOT / "data_synth" / "driven_bouc-wen.csv"
 IMPORTS = (
     "try:\n"
     "    from hystdisc.cli.common import skip_scipy_doc_notes\n"
@@ -54,13 +59,16 @@ IN_PROCESS = (
 )
 
 
-def _child(checkout: str, cmd: list[str]) -> tuple[float, float, str]:
-    """Wall and CPU time of a child running ``checkout``'s hystdisc, and its stdout."""
+def _child(checkout: str, cmd: list[str], cold: bool = False) -> tuple[float, float, str]:
+    """Wall and CPU time of a child running ``checkout``'s hystdisc, and its stdout;
+    ``cold``: with an empty numba cache of its own."""
     env = {**os.environ, "PYTHONPATH": checkout}
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
         cmd = [c.replace("{tmp}", tmp) for c in cmd]
+        if cold:
+            env["NUMBA_CACHE_DIR"] = str(Path(tmp) / "numba")
         proc = subprocess.run(cmd, capture_output=True, text=True, env=env, cwd=tmp)
     wall = time.perf_counter() - t0
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -86,6 +94,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("a", help="checkout A (the reference)")
     ap.add_argument("b", help="checkout B")
     ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument(
+        "--cases", default="1,2,3,4", help="which of the cases above (numbers, comma-separated)"
+    )
     ap.add_argument("--out", default=None, help="write the table as Markdown here")
     args = ap.parse_args(argv)
     py = sys.executable
@@ -97,9 +108,16 @@ def main(argv: list[str] | None = None) -> int:
             *("--out", "{tmp}", "--force", "--quiet"),
         ],
         "`Discovery(n_jobs=1).fit` in process": [py, "-c", IN_PROCESS, str(DATA)],
+        "first `hystdisc discover data_synth/driven_bouc-wen.csv`, empty numba cache": [
+            *(py, "-m", "hystdisc", "discover", str(DRIVEN)),
+            *("--out", "{tmp}", "--force", "--quiet"),
+        ],
     }
+    chosen = {int(k) for k in args.cases.split(",")}
+    cases = {k: v for i, (k, v) in enumerate(cases.items(), 1) if i in chosen}
     lines = [
-        f"`python benchmarks/ab_speed.py A B --repeats {args.repeats}`: A = {_commit(sides['A'])}"
+        f"`python benchmarks/ab_speed.py A B --repeats {args.repeats} --cases {args.cases}`: "
+        f"A = {_commit(sides['A'])}"
         f", B = {_commit(sides['B'])}; {os.cpu_count()} cores; load average at start {_load()}.",
         "",
         "| what | A wall (s) | B wall (s) | A CPU (s) | B CPU (s) | A/B wall | A/B CPU |",
@@ -107,12 +125,13 @@ def main(argv: list[str] | None = None) -> int:
     ]
     answers = {}
     for label, cmd in cases.items():
-        for side in "AB":  # warm-up
+        cold = "empty numba cache" in label
+        for side in "" if cold else "AB":  # warm-up (a cold run is its own)
             _child(sides[side], cmd)
         runs: dict[str, list[tuple[float, float]]] = {"A": [], "B": []}
         for _ in range(args.repeats):
             for side in "AB":
-                wall, cpu, out = _child(sides[side], cmd)
+                wall, cpu, out = _child(sides[side], cmd, cold)
                 if "in process" in label:
                     res = json.loads(out.strip().splitlines()[-1])
                     cpu, answers[side] = res["cpu"], res["answer"]
@@ -134,10 +153,13 @@ def main(argv: list[str] | None = None) -> int:
     same = answers.get("A") == answers.get("B")
     lines += [
         "",
-        f"Medians of {args.repeats}, alternated, after a warm-up each; load average at the end "
+        f"Medians of {args.repeats}, alternated, after a warm-up each (none for a first run); "
+        f"load average at the end "
         f"{_load()}. In-process answer (family, parameters to 6 digits): "
         + (
-            "the same for A and B."
+            "not run (case 3 not chosen)."
+            if not answers
+            else "the same for A and B."
             if same
             else f"**different**: A {answers['A']}, B {answers['B']}."
         ),
