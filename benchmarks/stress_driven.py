@@ -495,10 +495,8 @@ class Case:
         """The force noise as recorded over the samples the fit counts (``fitted``: each
         run's, past the filter's start-up: ``noise / sqrt(W)`` there); every sample
         (:attr:`force_floor`) when not known."""
-        if fitted is None or len(fitted) != len(prefilter_windows(self.condition)):
-            return self.force_floor
-        if not sum(fitted):  # nothing fitted: no samples to weight
-            return self.force_floor
+        if not fitted or len(fitted) != len(prefilter_windows(self.condition)) or not sum(fitted):
+            return self.force_floor  # not known, or nothing fitted to weight
         return self.noise * math.sqrt(self.n_eff_on(fitted) / sum(fitted))
 
     def n_eff_on(self, fitted: list[int] | None) -> float:
