@@ -6,7 +6,8 @@ simulated output (:mod:`hystdisc.fitting.simulate`):
 
 * a **delay between the channels** (the ``channel_delay`` effect, ``TermModel.delay``):
   the recorded output is the model's ``y(t - tau_d)``, shifted by fractional samples
-  (:func:`delayed`);
+  (:func:`delayed`); a driven test's model is driven by its motion ``tau_d`` earlier
+  instead (:func:`seen_motion`, a cubic between samples: :func:`smoothly_delayed`);
 * a **filter applied before the data reached hystdisc** (a rig's ``[filter]`` table, see
   :func:`hystdisc.data.read_rig`): a causal moving average of ``N`` samples applied to
   the simulated output as it was to the recorded one (:func:`causal_average`), and, when
@@ -70,12 +71,70 @@ def delayed(t: np.ndarray, y: np.ndarray, tau: float) -> np.ndarray:
     return np.interp(t - tau, t, y)
 
 
+def smoothly_delayed(t: np.ndarray, y: np.ndarray, tau: float) -> np.ndarray:
+    """A smooth signal ``y`` delayed by ``tau`` seconds: ``y(t - tau)``, interpolated by a
+    cubic.
+
+    The cubic through the four samples around each point (Lagrange) on an even time grid,
+    a cubic spline on an uneven one; the first (last) value is held outside the record.
+    Linear interpolation (:func:`delayed`) shrinks a sine of ``k`` samples per radian by
+    up to ``1/(8 k^2)`` between samples: half a sample late, a 5 Hz motion sampled at
+    500 Hz loses 5e-4 of its amplitude, several standard errors of a parameter fitted to
+    a few thousand samples. The cubic's error is of order ``1/k^4`` (4e-7 there).
+
+    Parameters
+    ----------
+    t : ndarray
+        Sample times (increasing).
+    y : ndarray
+        The signal at ``t``.
+    tau : float
+        Delay in s (negative: an advance).
+
+    Returns
+    -------
+    ndarray
+        ``y(t - tau)`` at ``t``.
+
+    Examples
+    --------
+    >>> t = np.arange(8.0)
+    >>> smoothly_delayed(t, t**3, 0.5)[2:6].tolist()
+    [3.375, 15.625, 42.875, 91.125]
+    """
+    if tau == 0.0:
+        return y
+    t = np.asarray(t, dtype=float)
+    y = np.asarray(y, dtype=float)
+    n = len(t)
+    if n < 4:
+        return delayed(t, y, tau)
+    dt = (t[-1] - t[0]) / (n - 1)
+    if np.max(np.abs(np.diff(t) - dt)) > 1e-6 * dt:
+        from scipy.interpolate import CubicSpline
+
+        out = CubicSpline(t, y)(t - tau)
+    else:
+        s = (t - tau - t[0]) / dt
+        i = np.clip(np.floor(s).astype(int), 1, n - 3)
+        p = s - i
+        out = (
+            -p * (p - 1) * (p - 2) / 6 * y[i - 1]
+            + (p + 1) * (p - 1) * (p - 2) / 2 * y[i]
+            - (p + 1) * p * (p - 2) / 2 * y[i + 1]
+            + (p + 1) * p * (p - 1) / 6 * y[i + 2]
+        )
+    out[t - tau <= t[0]] = y[0]
+    out[t - tau >= t[-1]] = y[-1]
+    return out
+
+
 def seen_motion(
     t: np.ndarray, theta: np.ndarray, theta_dot: np.ndarray, tau: float, play: float
 ) -> tuple[np.ndarray, np.ndarray]:
     """A driven test's measured motion and velocity as the damper saw them: ``tau`` s
-    earlier (:func:`delayed`: the force channel lags the motion's), then through a play
-    of half-width ``play`` (:func:`~hystdisc.models.backlash.play_motion`).
+    earlier (:func:`smoothly_delayed`: the force channel lags the motion's), then
+    through a play of half-width ``play`` (:func:`~hystdisc.models.backlash.play_motion`).
 
     Examples
     --------
@@ -83,8 +142,8 @@ def seen_motion(
     >>> seen_motion(t, t, np.ones(5), 1.0, 0.0)[0].tolist()
     [0.0, 0.0, 1.0, 2.0, 3.0]
     """
-    theta = delayed(t, theta, tau)
-    return play_motion(theta, delayed(t, theta_dot, tau), play)
+    theta = smoothly_delayed(t, theta, tau)
+    return play_motion(theta, smoothly_delayed(t, theta_dot, tau), play)
 
 
 def causal_average(y: np.ndarray, window: int, step: int = 1) -> np.ndarray:

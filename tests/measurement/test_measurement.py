@@ -22,6 +22,7 @@ from hystdisc.measurement.chain import (
     average_response,
     causal_average,
     delayed,
+    smoothly_delayed,
     unfiltered_motion,
 )
 from hystdisc.models import TermModel
@@ -120,6 +121,28 @@ def test_delayed_is_a_fractional_shift():
     want = np.sin(2 * np.pi * 2.0 * (t - 0.0025))
     assert np.abs(out - want)[3:].max() < 1e-4  # linear interpolation at 500 samples/cycle
     assert delayed(t, y, 0.0) is y
+
+
+@pytest.mark.parametrize("uneven", [False, True])
+def test_smoothly_delayed_keeps_a_sine_half_a_sample_late(uneven):
+    # a 5 Hz motion at 500 Hz, 1.5 samples late (the driven suite's delay condition):
+    # linear interpolation shrinks it by (w dt)^2 / 8 = 4.9e-4 of its amplitude between
+    # samples, several standard errors of a fitted parameter; the cubic keeps it to 1e-6
+    t = np.arange(2000) / 500.0
+    if uneven:
+        t = t + 2e-4 * np.sin(np.arange(2000))
+    w = 2 * np.pi * 5.0
+    want = np.sin(w * (t - 0.003))
+    inner = slice(4, -4)
+    lin = np.abs(delayed(t, np.sin(w * t), 0.003) - want)[inner].max()
+    cub = np.abs(smoothly_delayed(t, np.sin(w * t), 0.003) - want)[inner].max()
+    assert lin > 4e-4
+    assert cub < 1e-6
+    # held outside the record, as the linear shift does; no delay is the signal itself
+    y = np.sin(w * t)
+    assert smoothly_delayed(t, y, 0.003)[0] == y[0]
+    assert smoothly_delayed(t, y, -0.003)[-1] == y[-1]
+    assert smoothly_delayed(t, y, 0.0) is y
 
 
 def test_term_model_delay_in_records_and_equations():
