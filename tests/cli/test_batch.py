@@ -20,6 +20,9 @@ from hystdisc.simulation.synth import generate
 
 # small datasets: 3 currents, 3 s; a reduced family list keeps the test well under a minute
 OPTS = ["--families", "dahl,bouc-wen", "--quiet", "--force"]
+#: Dask's own connection timeout in s (``distributed.comm.timeouts.connect``), which
+#: ``--scheduler`` replaces by :data:`hystdisc.cluster.CONNECT_TIMEOUT`.
+DASK_DEFAULT = 30.0
 
 
 @pytest.fixture(scope="module")
@@ -146,8 +149,10 @@ def test_unreachable_scheduler_is_one_line_within_the_timeout(datasets, tmp_path
         "'dask worker ADDRESS'), or check the address\n"
     )
     waited = float(proc.stdout)
-    # the 5 s connection timeout, not dask's 30 s default
-    assert batch.CONNECT_TIMEOUT - 0.5 < waited < batch.CONNECT_TIMEOUT + 3
+    # the 5 s connection timeout, not dask's 30 s default: the bound is halfway between
+    # the two, so that a loaded machine (8.9 s with three benchmark jobs beside the
+    # suite) does not fail a wait that is ours
+    assert batch.CONNECT_TIMEOUT - 0.5 < waited < (batch.CONNECT_TIMEOUT + DASK_DEFAULT) / 2
     # and no half-closed client that holds the exit for 40 s (start-up takes a few seconds)
     assert total - waited < 30
     assert not list(tmp_path.glob("*.results.json"))
