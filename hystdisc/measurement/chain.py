@@ -87,14 +87,15 @@ def smoothly_delayed(t: np.ndarray, y: np.ndarray, tau: float) -> np.ndarray:
     t : ndarray
         Sample times (increasing).
     y : ndarray
-        The signal at ``t``.
+        The signal at ``t`` (shape ``(..., len(t))``: several signals on the same grid
+        are shifted at once).
     tau : float
         Delay in s (negative: an advance).
 
     Returns
     -------
     ndarray
-        ``y(t - tau)`` at ``t``.
+        ``y(t - tau)`` at ``t``, the shape of ``y``.
 
     Examples
     --------
@@ -108,24 +109,24 @@ def smoothly_delayed(t: np.ndarray, y: np.ndarray, tau: float) -> np.ndarray:
     y = np.asarray(y, dtype=float)
     n = len(t)
     if n < 4:
-        return delayed(t, y, tau)
+        return np.apply_along_axis(lambda v: delayed(t, v, tau), -1, y)
     dt = (t[-1] - t[0]) / (n - 1)
     if np.max(np.abs(np.diff(t) - dt)) > 1e-6 * dt:
         from scipy.interpolate import CubicSpline
 
-        out = CubicSpline(t, y)(t - tau)
+        out = CubicSpline(t, y, axis=-1)(t - tau)
     else:
         s = (t - tau - t[0]) / dt
         i = np.clip(np.floor(s).astype(int), 1, n - 3)
         p = s - i
         out = (
-            -p * (p - 1) * (p - 2) / 6 * y[i - 1]
-            + (p + 1) * (p - 1) * (p - 2) / 2 * y[i]
-            - (p + 1) * p * (p - 2) / 2 * y[i + 1]
-            + (p + 1) * p * (p - 1) / 6 * y[i + 2]
+            -p * (p - 1) * (p - 2) / 6 * y[..., i - 1]
+            + (p + 1) * (p - 1) * (p - 2) / 2 * y[..., i]
+            - (p + 1) * p * (p - 2) / 2 * y[..., i + 1]
+            + (p + 1) * p * (p - 1) / 6 * y[..., i + 2]
         )
-    out[t - tau <= t[0]] = y[0]
-    out[t - tau >= t[-1]] = y[-1]
+    out[..., t - tau <= t[0]] = y[..., :1]
+    out[..., t - tau >= t[-1]] = y[..., -1:]
     return out
 
 
@@ -142,8 +143,9 @@ def seen_motion(
     >>> seen_motion(t, t, np.ones(5), 1.0, 0.0)[0].tolist()
     [0.0, 0.0, 1.0, 2.0, 3.0]
     """
-    theta = smoothly_delayed(t, theta, tau)
-    return play_motion(theta, smoothly_delayed(t, theta_dot, tau), play)
+    if tau != 0.0:  # both signals on the same grid: one set of interpolation weights
+        theta, theta_dot = smoothly_delayed(t, np.vstack([theta, theta_dot]), tau)
+    return play_motion(theta, theta_dot, play)
 
 
 def causal_average(y: np.ndarray, window: int, step: int = 1) -> np.ndarray:
