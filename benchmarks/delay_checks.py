@@ -28,6 +28,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import stress_driven as sd  # puts this checkout first on the path
 
 from hystdisc import load
 from hystdisc.apply.predict import predict_dataset
@@ -37,9 +38,6 @@ from hystdisc.measurement.prepare import prepare_data
 from hystdisc.models import Model
 from hystdisc.simulation import simulate_driven_runs
 from hystdisc.simulation.scenarios import generate_from_scenario, scenario_model
-
-sys.path.insert(0, str(Path(__file__).parent))
-import stress_driven as sd  # noqa: E402
 
 #: Samples at the start of a run left out of both checks' errors (the fit leaves out a
 #: run's start too).
