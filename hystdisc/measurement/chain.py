@@ -30,6 +30,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
+from scipy.interpolate import CubicSpline
 
 from hystdisc.data import motion_frequency
 from hystdisc.measurement.fitdata import FitData
@@ -112,8 +113,6 @@ def smoothly_delayed(t: np.ndarray, y: np.ndarray, tau: float) -> np.ndarray:
         return np.apply_along_axis(lambda v: delayed(t, v, tau), -1, y)
     dt = (t[-1] - t[0]) / (n - 1)
     if np.max(np.abs(np.diff(t) - dt)) > 1e-6 * dt:
-        from scipy.interpolate import CubicSpline
-
         out = CubicSpline(t, y, axis=-1)(t - tau)
     else:
         s = (t - tau - t[0]) / dt
