@@ -176,6 +176,31 @@ class LibraryTermRecord(Record):
 
 
 @dataclass
+class LibraryHeldOutRecord(Record):
+    """``open_library.heldout``: the stable terms judged on held-out conditions
+    (:class:`hystdisc.closing.open_library.HeldOutTerms`).
+
+    Attributes
+    ----------
+    before, after : float
+        The pooled held-out RMS without and with the terms, each condition left out and
+        the model refitted (linearized at its optimum) with them.
+    folds : int
+        The held-out conditions.
+    lower : int
+        The conditions the terms predict better.
+    extra : dict
+        Keys this version does not know.
+    """
+
+    before: float | None = None
+    after: float | None = None
+    folds: int = 0
+    lower: int = 0
+    extra: dict[str, Any] = field(default_factory=dict, repr=False)
+
+
+@dataclass
 class OpenLibraryRecord(Record):
     """``open_library``: what the open library found in a residual the catalogue left
     (:class:`hystdisc.closing.open_library.ResidualTerms`).
@@ -192,17 +217,20 @@ class OpenLibraryRecord(Record):
         Candidate terms in the library.
     equation : str
         The discovered effect's equation.
+    heldout : LibraryHeldOutRecord or None
+        The terms judged on held-out conditions (None: not judged).
     extra : dict
         Keys this version does not know.
     """
 
-    _nested = {"terms": list_of(LibraryTermRecord)}
+    _nested = {"terms": list_of(LibraryTermRecord), "heldout": record_of(LibraryHeldOutRecord)}
 
     terms: list[LibraryTermRecord] = field(default_factory=list)
     explained: float | None = None
     effects: list[str] = field(default_factory=list)
     candidates: int = 0
     equation: str = ""
+    heldout: LibraryHeldOutRecord | None = None
     extra: dict[str, Any] = field(default_factory=dict, repr=False)
 
 

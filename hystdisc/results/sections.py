@@ -29,6 +29,7 @@ from hystdisc.results.loop_sections import (
     DelayScanRecord,
     FitSummaryRecord,
     LawLevelRecord,
+    LibraryHeldOutRecord,
     LibraryTermRecord,
     OpenLibraryRecord,
     ReductionRecord,
@@ -457,6 +458,7 @@ SECTION_RECORDS: tuple[type[Record], ...] = (
     OutlierRecord,
     FitSummaryRecord,
     LibraryTermRecord,
+    LibraryHeldOutRecord,
     LawLevelRecord,
     CurrentLawRecord,
 )
@@ -474,6 +476,7 @@ __all__ = [
     "EnvelopeRecord",
     "FitSummaryRecord",
     "LawLevelRecord",
+    "LibraryHeldOutRecord",
     "LibraryTermRecord",
     "MotionNoiseRecord",
     "NoiseRecord",

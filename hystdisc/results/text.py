@@ -228,6 +228,13 @@ def open_library_lines(lib: OpenLibraryRecord | None) -> list[str]:
         out.append(f"  {t.name}: {t.coefficient:.4g} (inclusion {t.inclusion:.2f}, {who})")
     if lib.equation:
         out.append(f"  {lib.equation} (evidence, not a verdict: refit and held out before use)")
+    h = lib.heldout
+    if h is not None and h.before is not None and h.after is not None:
+        out.append(
+            f"  held out (each condition left out, the model refitted with the terms, "
+            f"linearized): {h.before:.4g} -> {h.after:.4g}, lower in {h.lower} of {h.folds} "
+            "conditions"
+        )
     return out
 
 

@@ -107,10 +107,15 @@ def test_an_asymmetric_yield_the_catalogue_lacks_is_discovered():
 def test_the_output_error_residual_of_any_family(family):
     """The force residual of a driven test, the model's own sensitivities projected out:
     the step alone is found, for a term family and a state-space one (which has no
-    equation-error form); the true model's residual gives nothing."""
+    equation-error form); the true model's residual gives nothing. Judged on held-out
+    conditions (each of the two drives left out, the model refitted with the term), the
+    step predicts the left-out drive at the noise, and the model without it does not."""
     found = _found("step", output=True, family=family)
     assert [t.name for t in found.terms][:1] == ["[theta_dot>0]"]
     assert found.terms[0].coefficient == pytest.approx(STEP, rel=0.1)
+    h = found.heldout
+    assert (h.folds, h.lower) == (2, 2)
+    assert h.after == pytest.approx(NOISE, rel=0.05) and h.before > 2 * NOISE
     assert _found("clean", output=True, family=family).terms == []
 
 
@@ -164,9 +169,15 @@ def test_the_loop_reports_what_the_catalogue_left(tmp_path):
     lib = d.open_library_
     assert lib is not None and lib.terms[0].name == "theta*[theta>0]"
     assert lib.terms[0].coefficient == pytest.approx(ASYM, rel=0.1)
+    # refitted with the model, each drive left out: the left-out drive at the noise
+    assert lib.heldout.lower == lib.heldout.folds == 2
+    assert lib.heldout.after == pytest.approx(NOISE, rel=0.1)
+    assert lib.heldout.before > 2 * lib.heldout.after, lib.heldout
     res = Results.from_json(d.results_.to_json())
     assert res.open_library["terms"][0]["name"] == "theta*[theta>0]"
     assert "Open library (" in res.report() and "T_extra = " in res.report()
+    assert res.open_library.heldout.after == pytest.approx(lib.heldout.after, rel=1e-6)
+    assert "held out (each condition left out, the model refitted" in res.report()
     html = tmp_path / "report.html"
     write_report(d, data, html)
     assert "open library" in html.read_text(encoding="utf-8")

@@ -249,6 +249,7 @@ def test_every_section_is_typed_and_round_trips():
     assert res.reselection.families["spencer"].heldout_rms is not None
     assert res.current_laws.laws["c"].coefficients == {"c_a": 0.5, "c_b": 0.6}
     assert res.open_library.terms[1].effect == "quadratic_damping"
+    assert res.open_library.heldout.lower == 2
     assert res.reduction.fit.bic == tables["reduction"]["fit"]["bic"]
     # and by key, as the plain tables of schema 1 were
     assert res.noise["method"] == "period" and dict(res.conditions) == tables["conditions"]
