@@ -273,7 +273,7 @@ def reselect(
     how = (
         "which the loop then found"
         if not rejected
-        else f"which the loop's refit of {before} fitted better but did not predict better "
+        else f"which the loop's refit of {before} fitted better but the loop did not accept "
         f"({', '.join(rejected)})"
     )
     say(f"selection again: every family with {names}")
