@@ -110,7 +110,7 @@ def candidate_effects(fit: OEFit, data: FitData) -> tuple[list[str], list[Effect
         # current; a force bias's law (current_bias: the term ``i``) is no law of its own
         if system and (eff.structural or any(t.startswith(LAW_PREFIXES) for t in eff.terms)):
             reason = f"{fam.name} is a state-space family: " + (
-                "its structural form is not built"
+                "the loop does not refit its structural form"
                 if eff.structural
                 else "its own current laws cover the current dependence"
             )

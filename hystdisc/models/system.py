@@ -37,6 +37,7 @@ from collections.abc import Mapping
 import numba
 import numpy as np
 
+from hystdisc.errors import HystdiscError
 from hystdisc.models.compiled import (
     N_BASE,
     TERM_SIZE,
@@ -306,6 +307,26 @@ class FamilySystem(StateSpaceModel):
             rig = (RIG_PARAMS[0],) + ((RIG_PARAMS[1],) if exp.inertia_identifiable else ())
         eff_params = tuple(p for e in self._effects for p in e.params)
         self.params = (*fam_params, *family.law_params(self.laws), *rig, *eff_params)
+        #: The structural effect the model is built around (a driven test's compliant
+        #: mount), or None.
+        self.structure = self._structural(family, exp)
+        if self.structure is not None:
+            self.states = family.mount_states
+            self.rate, self.observe = family.mount_rate, family.mount_output
+            self.rate_jac = self.observe_grad = None  # its Jacobian is taken by differences
+
+    def _structural(self, family, exp):
+        """The one structural effect among the effects (None: none), checked buildable."""
+        found = [e for e in self._effects if e.structural]
+        if not found:
+            return None
+        if len(found) > 1 or not exp.motion_imposed or family.mount_rate is None:
+            built = "driven tests" if family.mount_rate is not None else "no test"
+            raise HystdiscError(
+                f"{family.name}: {', '.join(e.name for e in found)} is built for {built} "
+                f"of this family, not a {exp.name} one; fix: leave it out of the effects"
+            )
+        return found[0].structure
 
     def run_parameters(self, values: Mapping[str, float], current: float) -> np.ndarray:
         v = self.check(values)
@@ -313,9 +334,19 @@ class FamilySystem(StateSpaceModel):
         effects = apply_effects(TermModel(), self._effects, v, ks)
         head = base_coefficients(effects, current)
         tail = [SIGN_EPS, ks, v.get("J", 1.0)]
-        return np.concatenate([head, tail, self.family.block(v, current)])
+        out = [head, tail, self.family.block(v, current)]
+        if self.structure is not None:
+            s = self.structure
+            out.append([v[s.inertia], v[s.stiffness], v[s.damping]])
+        return np.concatenate(out)
 
     def equations(self) -> str:
         extra = "".join(f"\n+ {e.name}: {e.doc}" for e in self._effects)
         laws = self.family.law_equations(self.laws)
+        if self.structure is not None:
+            s = self.structure
+            extra += (
+                f"\nbehind the mount: {s.inertia}*y'' = {s.stiffness}*(theta - y) + "
+                f"{s.damping}*(theta_dot - y_dot) - F(y, y_dot), the damper moving with y"
+            )
         return self.family.equations() + (f"\n{laws}" if laws else "") + extra

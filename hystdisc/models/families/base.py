@@ -295,6 +295,13 @@ class SystemFamily(Family):
     driven_output_grad = None
     mech_rate_jac = None
     mech_output_grad = None
+    #: A driven test's damper behind a compliant mount (the structural effect
+    #: ``series_compliance``): the states and compiled ``rate``/``output`` that read the
+    #: mount's mass, stiffness and damping after the family's :meth:`block`; None: the
+    #: family has no such form.
+    mount_states: tuple[str, ...] | None = None
+    mount_rate = None
+    mount_output = None
 
     def system(
         self,

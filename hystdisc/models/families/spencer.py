@@ -89,6 +89,31 @@ def _driven_output(x, u, p):
     return _force(p, u[0], u[1], x[0], x[1])
 
 
+# behind a compliant mount (the ``series_compliance`` effect on a driven test): the mount's
+# mass, stiffness and damping after the family block
+_MW = _K1 + 1
+_KW = _K1 + 2
+_CW = _K1 + 3
+
+
+@numba.njit(cache=True, nogil=True)
+def _mount_rate(x, u, p, dx):
+    """States: the mount's deflection ``m = x - y``, the damper end's velocity ``y'``, the
+    stretch ``d`` and ``z``; the damper moves with its end ``y``."""
+    m, yd, d, z = x[0], x[1], x[2], x[3]
+    y = u[0] - m
+    rd = yd - _node_rate(p, y, yd, d, z)
+    dx[0] = u[1] - yd
+    dx[1] = (p[_KW] * m + p[_CW] * (u[1] - yd) - _force(p, y, yd, d, z)) / p[_MW]
+    dx[2] = rd
+    dx[3] = term_rate(p[_B:_N], p[_N], rd, z)
+
+
+@numba.njit(cache=True, nogil=True)
+def _mount_output(x, u, p):
+    return _force(p, u[0] - x[0], x[1], x[2], x[3])
+
+
 @numba.njit(cache=True, nogil=True)
 def _mech_rate(x, u, p, dx):
     th, w, d, z = x[0], x[1], x[2], x[3]
@@ -258,6 +283,9 @@ class Spencer(SystemFamily):
     driven_output = staticmethod(_driven_output)
     mech_rate = staticmethod(_mech_rate)
     mech_output = staticmethod(_mech_output)
+    mount_states = ("m", "y_dot", "d", "z")
+    mount_rate = staticmethod(_mount_rate)
+    mount_output = staticmethod(_mount_output)
     driven_rate_jac = staticmethod(_driven_rate_jac)
     driven_output_grad = staticmethod(_driven_output_grad)
     mech_rate_jac = staticmethod(_mech_rate_jac)
