@@ -155,6 +155,42 @@ def small(loop: Any, seen: Mapping[str, Any]) -> list[str]:
     return _fitted_only(loop, seen, lowered_only)
 
 
+def unlowered(loop: Any, seen: Mapping[str, Any]) -> list[str]:
+    """The effects of ``seen`` the loop did not accept and whose refit did not lower BIC by
+    the margin (or was not usable), when the loop's final residual is still above the
+    noise (``loop.unexplained``): the selected family may be the wrong one, whose
+    misfit the effect does not fit (:func:`screened` tells).
+
+    Behind a tanh damper with a 3 ms lag (never-drawn driven set tanh/21/delay) the scan
+    saw the lag (share 0.15), Bouc-Wen's delay refit went to 0, and a compliant mount on
+    Bouc-Wen (k_w 30) took 72 % of its excess: Bouc-Wen + mount was selected at 5.5 times
+    the floor. On a residual at the noise nothing is screened (no other family can
+    predict better than the noise).
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace as V
+    >>> tried = [V(name="channel_delay", ok=True, bic_before=0.0, bic_after=9.7)]
+    >>> unlowered(V(effects=[], tried=tried, unexplained=True), {"channel_delay": {}})
+    ['channel_delay']
+    >>> unlowered(V(effects=[], tried=tried, unexplained=False), {"channel_delay": {}})
+    []
+    """
+    if not seen or not loop.unexplained:
+        return []
+
+    def lowered(v: Any) -> bool:
+        return bool(
+            v.ok and v.bic_after is not None and v.bic_after < v.bic_before - EFFECT_BIC_MARGIN
+        )
+
+    return [
+        name
+        for name in seen
+        if name not in loop.effects and not any(v.name == name and lowered(v) for v in loop.tried)
+    ]
+
+
 def screened(
     table: Mapping[str, OEFit],
     family: str,
@@ -162,8 +198,9 @@ def screened(
     ctx: Context,
     seen: Mapping[str, Mapping[str, float]],
 ) -> list[str]:
-    """The effects of :func:`small` that another family, refitted with that effect alone
-    (no held-out errors), fits better than the selected final model predicts: its RMS on
+    """The effects of :func:`small` and :func:`unlowered` that another family, refitted
+    with that effect alone (no held-out errors), fits better than the selected final model
+    predicts: its RMS on
     all the runs below ``loop.fit``'s held-out RMS. A family above that cannot be selected
     with the effect (its held-out error would be higher still), so the comparison with
     held-out errors is run only when one is below it.
@@ -188,7 +225,7 @@ def screened(
     """
     return [
         name
-        for name in small(loop, seen)
+        for name in small(loop, seen) + unlowered(loop, seen)
         if _better_elsewhere(table, family, loop, ctx, name, seen[name], "absorbed by")
     ]
 
