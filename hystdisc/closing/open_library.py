@@ -30,7 +30,7 @@ the loop tries those it has not refitted by output error,
 :func:`hystdisc.pipeline.close.library_effects`); the rest
 is a *discovered effect*, reported with its equation. Nothing here is accepted: a term
 set is evidence, and only a refit that predicts held-out conditions better is a verdict.
-On a driven test's force residual the stable terms are judged so (:func:`heldout_terms`):
+On a driven test's force residual the stable terms are judged so (:func:`~hystdisc.closing.library_heldout.heldout_terms`):
 each test condition is left out, the model's parameters (linearized at the optimum) and
 the terms' coefficients are refitted on the others, and the held-out RMS with the terms is
 reported beside the one without (:attr:`ResidualTerms.heldout`). The terms do not enter
@@ -53,6 +53,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pysindy as ps
 
+from hystdisc.closing.library_heldout import HeldOutTerms, heldout_terms
 from hystdisc.closing.scores import equation_state
 from hystdisc.discovery.selection import seeded_fit
 from hystdisc.fitting import OutputErrorFitter
@@ -122,8 +123,8 @@ class ResidualTerms:
         Catalogued effects whose torque terms are all among the selected.
     candidates : int
         Candidate terms in the library.
-    heldout : HeldOutTerms or None
-        The stable terms judged on held-out conditions (:func:`heldout_terms`; None: not
+    heldout : ~hystdisc.closing.library_heldout.HeldOutTerms or None
+        The stable terms judged on held-out conditions (:func:`~hystdisc.closing.library_heldout.heldout_terms`; None: not
         judged, a test whose output is not the force or a single condition).
     """
 
@@ -188,113 +189,6 @@ class ResidualTerms:
         if self.heldout is not None:
             out["heldout"] = self.heldout.to_dict()
         return out
-
-
-@dataclass
-class HeldOutTerms:
-    """The stable terms of the open library judged on held-out conditions: each condition
-    left out in turn, the model's parameters and the terms' coefficients refitted on the
-    others by one Gauss-Newton step from the fit's optimum (the model linearized there),
-    the left-out condition predicted; the same without the terms is the reference.
-
-    The term set itself was chosen on all the data; the refits are what is held out.
-
-    Attributes
-    ----------
-    before, after : float
-        The pooled held-out RMS without and with the terms (the output's units).
-    folds : int
-        The held-out conditions.
-    lower : int
-        The conditions the terms predict better.
-
-    Examples
-    --------
-    >>> HeldOutTerms(62.1, 55.0, 6, 6).sentence()
-    'held out (each condition left out, refitted with the model): 62.1 -> 55 (lower in 6 of 6 conditions)'
-    """
-
-    before: float
-    after: float
-    folds: int
-    lower: int
-
-    @property
-    def predicts(self) -> bool:
-        """The terms lower the pooled held-out error and that of every condition."""
-        return self.after < self.before and self.lower == self.folds
-
-    def sentence(self) -> str:
-        """One line: the held-out RMS without and with the terms."""
-        return (
-            f"held out (each condition left out, refitted with the model): "
-            f"{self.before:.4g} -> {self.after:.4g} (lower in {self.lower} of {self.folds} "
-            "conditions)"
-        )
-
-    def to_dict(self) -> dict:
-        """The ``results.json`` form."""
-        return {"before": self.before, "after": self.after, "folds": self.folds,
-                "lower": self.lower}  # fmt: skip
-
-
-def heldout_terms(
-    G: np.ndarray, r: np.ndarray, A: np.ndarray, fold: np.ndarray
-) -> HeldOutTerms | None:
-    """The columns ``G`` (selected terms) judged on held-out folds of the rows.
-
-    Each fold's rows are left out in turn; on the other rows the residual ``r`` is
-    regressed by least squares on the model's own columns ``A`` (its sensitivities at the
-    optimum: one Gauss-Newton step of its parameters), without and with ``G``, and the
-    fold's rows are predicted by each.
-
-    Parameters
-    ----------
-    G : ndarray (rows, terms)
-        The terms' columns.
-    r : ndarray
-        The residual, measured minus modelled.
-    A : ndarray (rows, k)
-        The model's own columns; a column zero on the training rows (a left-out run's
-        initial state) is left out of that fold's refit.
-    fold : ndarray of int
-        Each row's fold.
-
-    Returns
-    -------
-    HeldOutTerms or None
-        None for fewer than two folds.
-
-    Examples
-    --------
-    >>> rng = np.random.default_rng(0)
-    >>> x = rng.normal(size=(600, 1)); g = np.tanh(3 * x)
-    >>> r = 0.5 * g[:, 0] + 0.01 * rng.normal(size=600)  # x alone leaves 0.20
-    >>> h = heldout_terms(g, r, x, np.repeat([0, 1, 2], 200))
-    >>> round(h.before, 2), round(h.after, 3), h.lower, h.folds
-    (0.2, 0.01, 3, 3)
-    """
-    labels = np.unique(fold)
-    if labels.size < 2:
-        return None
-    sq0 = sq1 = 0.0
-    lower = 0
-    for f in labels:
-        out = fold == f
-        train = ~out
-        keep = np.any(A[train] != 0.0, axis=0)
-        without = A[:, keep]
-        with_terms = np.column_stack([without, G])
-        e = []
-        for B in (without, with_terms):
-            sc = np.sqrt(np.mean(B[train] ** 2, axis=0))
-            sc[sc == 0] = 1.0
-            c, *_ = np.linalg.lstsq(B[train] / sc, r[train], rcond=1e-12)
-            e.append(r[out] - (B[out] / sc) @ c)
-        s0, s1 = float(e[0] @ e[0]), float(e[1] @ e[1])
-        sq0, sq1, lower = sq0 + s0, sq1 + s1, lower + int(s1 < s0)
-    n = int(fold.size)
-    return HeldOutTerms(float(np.sqrt(sq0 / n)), float(np.sqrt(sq1 / n)), int(labels.size), lower)
 
 
 Signals = tuple[np.ndarray, np.ndarray, np.ndarray, float, float]

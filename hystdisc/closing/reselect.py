@@ -273,8 +273,7 @@ def reselect(
     how = (
         "which the loop then found"
         if not rejected
-        else f"which the loop's refit of {before} fitted better but the loop did not accept "
-        f"({', '.join(rejected)})"
+        else f"which the loop tried on {before} and did not accept ({', '.join(rejected)})"
     )
     say(f"selection again: every family with {names}")
     fits = refit_families(family_fits, effects, ctx.data, ctx.eq, values, ctx.shapes,

@@ -173,7 +173,7 @@ def test_a_delay_the_selected_family_absorbed_enters_the_comparison_again(monkey
     (args,) = seen
     assert args[1] == ["channel_delay"] and args[4] == {"tau_d": 0.002}  # effects, start
     assert out.family == "tanh" and out.loop is closed
-    assert "the loop's refit of bouc-wen fitted better but the loop did not accept" in out.note
+    assert "which the loop tried on bouc-wen and did not accept (channel_delay)" in out.note
     # a delay whose refit also removed too little of the excess (driven stress set
     # tanh/16/delay: 7 % of Bouc-Wen's) is carried only when another family, refitted with
     # it alone, fits all the runs better than the selected final model predicts
