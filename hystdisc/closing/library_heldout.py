@@ -43,11 +43,6 @@ class HeldOutTerms:
     folds: int
     lower: int
 
-    @property
-    def predicts(self) -> bool:
-        """The terms lower the pooled held-out error and that of every condition."""
-        return self.after < self.before and self.lower == self.folds
-
     def sentence(self) -> str:
         """One line: the held-out RMS without and with the terms."""
         return (
