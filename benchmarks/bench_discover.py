@@ -23,7 +23,13 @@ currents 0..1 A, 6 s at 1 kHz, 1 mrad noise).
 The machine is shared (2 cores, other jobs running): absolute times are noisy, so the
 ratio is taken between measurements of the same run, and the load average is recorded.
 
-Run:  python benchmarks/bench_discover.py [--budget 300] [--repeats 3]
+(c) The multi-start baseline: ``scipy.optimize.least_squares`` (trf, 2-point Jacobian) on
+    the same residuals from ``--starts`` log-uniform random starts within the same bounds.
+(d) With ``HYSTDISC_DATA`` set (or ``--real-data DIR``): ``hystdisc discover`` once on each
+    measured set there (the UTFSM MR damper through its rig file and as one CSV, the
+    Bouc-Wen benchmark's estimation record), wall and CPU, against issue 36's 60 s.
+
+Run:  python benchmarks/bench_discover.py [--budget 300] [--repeats 3] [--no-real]
       (writes benchmarks/results/bench_discover.txt; default budget 60x discover's time, at least 300 s)
 """
 
@@ -42,13 +48,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from scipy.optimize import differential_evolution
+from scipy.optimize import differential_evolution, least_squares
 from threadpoolctl import threadpool_limits
 
-from hystdisc.data import Dataset, atomic_write_text, load
+from hystdisc.data import Dataset, atomic_write_text, load, write_csv
 from hystdisc.estimator import Discovery
 from hystdisc.fitting import FamilyParametrization, OutputErrorFitter
 from hystdisc.measurement import FitData
+from hystdisc.measurement.prepare import prepare_data
 from hystdisc.models import RIG_PARAMS
 from hystdisc.results import Results
 
@@ -168,8 +175,7 @@ def time_inprocess_discover(data: Dataset, repeats: int = 1, **options) -> tuple
 
 def prepared_fit_data(data: Dataset) -> FitData:
     """The output-error data exactly as discover prepares it (trimmed tails, same mask)."""
-    _, fd = Discovery()._prepare(data)
-    return fd
+    return prepare_data(data)[1]
 
 
 def user_bounds(
@@ -303,6 +309,161 @@ def swarm_fit(
     )
 
 
+# ----------------------------------------------------------------------------- multi-start
+
+
+@dataclass
+class MultiStart:
+    """Outcome of a multi-start least-squares fit."""
+
+    best_rms: float
+    params: dict[str, float]
+    nfev: int
+    reached: int  # starts whose result is within the target RMS
+    time_to_target: float | None  # wall time until the target was first reached
+    cpu_to_target: float | None
+    wall: float = 0.0  # all the starts
+    cpu: float = 0.0
+
+
+def multistart(
+    fd: FitData,
+    family: str,
+    bounds: list[tuple[float, float]],
+    starts: int,
+    max_nfev: int,
+    target_rms: float,
+    seed: int = 0,
+) -> MultiStart:
+    """``starts`` bounded least-squares fits from log-uniform random starts; best one kept.
+
+    ``scipy.optimize.least_squares`` (trf, 2-point Jacobian, ``x_scale="jac"``) on
+    :meth:`hystdisc.fitting.OutputErrorFitter.residuals` of ``family``: what a user does
+    who knows the family and has a good simulator, but no stage 1 and no exact Jacobian.
+    """
+    par = FamilyParametrization(family, fd.experiment, {})
+    fitter = OutputErrorFitter(fd, par)
+    lo = np.array([b[0] for b in bounds])
+    hi = np.array([b[1] for b in bounds])
+    rng = np.random.default_rng(seed)
+    best = (np.inf, None)
+    nfev = 0
+    reached = 0
+    hit: list[tuple[float, float]] = []
+    t0, c0 = time.perf_counter(), time.process_time()
+
+    def fun(v):
+        with np.errstate(all="ignore"):
+            r = fitter.residuals(v)
+        r = np.where(np.isfinite(r), r, 1e6)
+        if not hit and np.sqrt(np.mean(r * r)) <= target_rms:
+            hit.append((time.perf_counter() - t0, time.process_time() - c0))
+        return r
+
+    for _ in range(starts):
+        pos = lo > 0
+        x0 = np.where(
+            pos,
+            np.exp(rng.uniform(np.log(np.where(pos, lo, 1.0)), np.log(np.where(pos, hi, 1.0)))),
+            rng.uniform(lo, hi),
+        )
+        res = least_squares(
+            fun, x0, bounds=(lo, hi), method="trf", x_scale="jac", max_nfev=max_nfev
+        )
+        nfev += res.nfev
+        rms = float(np.sqrt(np.mean(res.fun**2)))
+        reached += rms <= target_rms
+        if rms < best[0]:
+            best = (rms, res.x)
+    params = par.params(best[1][: len(par.names)]) if best[1] is not None else {}
+    return MultiStart(
+        best[0],
+        params,
+        nfev,
+        int(reached),
+        hit[0][0] if hit else None,
+        hit[0][1] if hit else None,
+        time.perf_counter() - t0,
+        time.process_time() - c0,
+    )
+
+
+# ----------------------------------------------------------------------------- real sets
+
+#: Issue 36: a real 30-test set in a minute.
+REAL_TARGET_S = 60.0
+RIG = ROOT / "data_synth" / "rigs" / "utfsm_mr_damper.toml"
+
+
+@dataclass
+class RealTiming:
+    """One ``hystdisc discover`` of a measured set, timed once."""
+
+    label: str
+    command: str
+    wall: float
+    cpu: float
+    results: Results
+    target: float | None  # the issue's target wall time, if it sets one
+
+
+def _time_once(args: list[str]) -> tuple[float, float, Results]:
+    """Wall and CPU of one ``hystdisc discover ARGS`` in a fresh interpreter, its results."""
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "results.json"
+        cmd = [sys.executable, "-m", "hystdisc", "discover", *args, "--json", str(out)]
+        cmd += ["--force", "--quiet"]
+        r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+        t0 = time.perf_counter()
+        proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
+        wall = time.perf_counter() - t0
+        r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+        if proc.returncode != 0:
+            raise RuntimeError(f"discover {' '.join(args)} failed: {proc.stderr.strip()}")
+        cpu = (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime)
+        return wall, cpu, Results.load(out)
+
+
+def real_sets(root: Path, work: Path) -> list[RealTiming]:
+    """Time ``hystdisc discover`` on the measured sets under ``root`` (``HYSTDISC_DATA``).
+
+    - the UTFSM MR damper folder through its rig file (the documented path);
+    - the same 30 files as one CSV a user would write (``hystdisc.data.write_csv``: SI
+      units, a ``run`` column; no rig file, so no filter declared);
+    - the Noel-Schoukens Bouc-Wen benchmark's estimation record as a CSV (``t, theta,
+      input``, ``--experiment forced``, no current column).
+
+    A set whose folder is missing is left out. The CSVs are written under ``work``.
+    """
+    import scipy.io
+
+    out = []
+    mr = root / "utfsm_mr_damper"
+    if mr.is_dir():
+        args = [str(mr), "--rig", str(RIG)]
+        wall, cpu, res = _time_once(args)
+        cmd = f"hystdisc discover {mr.name} --rig {RIG.relative_to(ROOT)}"
+        out.append(RealTiming("UTFSM, 30 files, rig file", cmd, wall, cpu, res, REAL_TARGET_S))
+        # read through the rig file (columns, units, currents); the CSV keeps no filter
+        csv = write_csv(load(str(mr), rig=str(RIG)), work / "utfsm.csv", force=True)
+        wall, cpu, res = _time_once([str(csv)])
+        out.append(
+            RealTiming("UTFSM, 30 files as one CSV", "hystdisc discover utfsm.csv", wall, cpu,
+                       res, REAL_TARGET_S)
+        )  # fmt: skip
+    bw = root / "boucwen_benchmark"
+    if bw.is_dir():
+        u = scipy.io.loadmat(bw / "uest_multisine.mat")["u"].ravel()
+        y = scipy.io.loadmat(bw / "yest_multisine.mat")["y"].ravel()
+        path = work / "benchmark.csv"
+        table = np.column_stack([np.arange(u.size) / 750.0, y, u])
+        np.savetxt(path, table, delimiter=",", header="t,theta,input", comments="")
+        wall, cpu, res = _time_once([str(path), "--experiment", "forced"])
+        cmd = "hystdisc discover benchmark.csv --experiment forced"
+        out.append(RealTiming("Bouc-Wen benchmark record", cmd, wall, cpu, res, None))
+    return out
+
+
 def best_at(trace: list[tuple[float, float]], t: float) -> float:
     """Best RMS of a swarm trace at time ``t``."""
     vals = [r for tt, r in trace if tt <= t]
@@ -325,7 +486,15 @@ def main(argv: list[str] | None = None) -> str:
         "300 s, so that a swarm that does not reach the RMS still shows a ratio above the "
         "50x target)",
     )
-    ap.add_argument("--seed", type=int, default=0, help="seed of the swarm")
+    ap.add_argument("--seed", type=int, default=0, help="seed of the swarm and the starts")
+    ap.add_argument("--starts", type=int, default=10, help="multi-start LSQ: random starts")
+    ap.add_argument("--nfev", type=int, default=100, help="multi-start LSQ: iterations each")
+    ap.add_argument(
+        "--real-data",
+        default=os.environ.get("HYSTDISC_DATA"),
+        help="folder of the measured sets (default: $HYSTDISC_DATA); each is timed once",
+    )
+    ap.add_argument("--no-real", action="store_true", help="leave the measured sets out")
     ap.add_argument("-o", "--output", default=str(RESULTS / "bench_discover.txt"))
     args = ap.parse_args(argv)
 
@@ -389,6 +558,23 @@ def main(argv: list[str] | None = None) -> str:
     say(f"    load average after (b): {os.getloadavg()[0]:.2f}")
     say()
 
+    say(
+        f"(c) multi-start LSQ: scipy least_squares (trf, 2-point Jacobian) from {args.starts} "
+        f"log-uniform random starts within the same bounds, at most {args.nfev} iterations each"
+    )
+    ms = multistart(fd, args.family, bounds, args.starts, args.nfev, target, seed=args.seed)
+    first = (
+        f"first reached 1.01x discover's RMS at {ms.time_to_target:.1f} s wall"
+        if ms.time_to_target is not None
+        else "never reached 1.01x discover's RMS"
+    )
+    say(
+        f"    {ms.reached}/{args.starts} starts reach 1.01x discover's RMS; {first}; all "
+        f"starts {ms.wall:.1f} s wall, {ms.cpu:.1f} s CPU; best RMS {ms.best_rms:.6g} rad"
+    )
+    say(f"    load average after (c): {os.getloadavg()[0]:.2f}")
+    say()
+
     ratio = (sw.time_to_target if sw.reached else budget) / disc.median_wall
     cpu_ratio = sw.cpu / disc.median_cpu
     prefix = "" if sw.reached else ">"
@@ -403,6 +589,10 @@ def main(argv: list[str] | None = None) -> str:
         f"{'differential_evolution to 1.01x that RMS':<44}{sw.time_text(budget):>10}"
         f"{prefix + f'{sw.cpu:.1f}':>10}{sw.best_rms:>12.5g}{prefix + f'{ratio:.1f}x':>12}"
         f"{prefix + f'{cpu_ratio:.1f}x':>11}"
+    )
+    say(
+        f"{'multi-start LSQ (all starts)':<44}{ms.wall:>10.1f}{ms.cpu:>10.1f}{ms.best_rms:>12.5g}"
+        f"{f'{ms.wall / disc.median_wall:.1f}x':>12}{f'{ms.cpu / disc.median_cpu:.1f}x':>11}"
     )
     say()
     say(
@@ -420,6 +610,24 @@ def main(argv: list[str] | None = None) -> str:
         "robust one (a process's wall time depends on the load while it ran: see the load "
         "averages above)"
     )
+    if args.real_data and not args.no_real:
+        say()
+        say(
+            f"(d) measured sets under $HYSTDISC_DATA, each `hystdisc discover` once in a fresh "
+            f"interpreter (issue 36's target: {REAL_TARGET_S:g} s wall for a 30-test set)"
+        )
+        with tempfile.TemporaryDirectory() as tmp:
+            real = real_sets(Path(args.real_data), Path(tmp))
+        say(f"{'set':<32}{'wall [s]':>10}{'CPU [s]':>10}{'target':>8}  selected family")
+        for r in real:
+            fam = r.results.families[r.results.family]
+            ho = "n/a" if fam.heldout_rms is None else f"{fam.heldout_rms:.4g}"
+            tgt = "-" if r.target is None else ("met" if r.wall <= r.target else "NO")
+            say(
+                f"{r.label:<32}{r.wall:>10.1f}{r.cpu:>10.1f}{tgt:>8}  {r.results.family}, "
+                f"RMS {fam.rms:.4g}, held-out RMS {ho} (`{r.command}`)"
+            )
+        say(f"load average after (d): {os.getloadavg()[0]:.2f}")
     text = "\n".join(lines) + "\n"
     atomic_write_text(args.output, text, force=True)
     print(f"wrote {args.output}")

@@ -53,15 +53,19 @@ from pathlib import Path
 
 import numpy as np
 import pysindy as ps
-from scipy.optimize import least_squares
 from threadpoolctl import threadpool_limits
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_discover import machine_description, swarm_fit, user_bounds  # noqa: E402
+from bench_discover import (  # noqa: E402
+    machine_description,
+    multistart,
+    swarm_fit,
+    user_bounds,
+)
 
 from hystdisc.data import Dataset, atomic_write_text, load  # noqa: E402
 from hystdisc.estimator import Discovery  # noqa: E402
-from hystdisc.fitting import FamilyParametrization, OutputErrorFitter  # noqa: E402
+from hystdisc.fitting import FamilyParametrization  # noqa: E402
 from hystdisc.measurement import FitData
 from hystdisc.models import Model, get_family  # noqa: E402
 from hystdisc.registry import family_names  # noqa: E402
@@ -142,73 +146,6 @@ def run_discover(data: Dataset) -> tuple[Discovery, float, float]:
     disc = Discovery().fit(data)
     wall, cpu = _since(c)
     return disc, wall, cpu
-
-
-@dataclass
-class MultiStart:
-    """Outcome of a multi-start least-squares fit."""
-
-    best_rms: float
-    params: dict[str, float]
-    nfev: int
-    reached: int  # starts whose result is within the target RMS
-    time_to_target: float | None  # wall time until the target was first reached
-    cpu_to_target: float | None
-
-
-def multistart(
-    fd: FitData,
-    family: str,
-    bounds: list[tuple[float, float]],
-    starts: int,
-    max_nfev: int,
-    target_rms: float,
-    seed: int = 0,
-) -> MultiStart:
-    """``starts`` bounded least-squares fits from log-uniform random starts; best one kept."""
-    par = FamilyParametrization(family, fd.experiment, {})
-    fitter = OutputErrorFitter(fd, par)
-    lo = np.array([b[0] for b in bounds])
-    hi = np.array([b[1] for b in bounds])
-    rng = np.random.default_rng(seed)
-    best = (np.inf, None)
-    nfev = 0
-    reached = 0
-    hit: list[tuple[float, float]] = []
-    c0 = _clock()
-
-    def fun(v):
-        with np.errstate(all="ignore"):
-            r = fitter.residuals(v)
-        r = np.where(np.isfinite(r), r, 1e6)
-        if not hit and np.sqrt(np.mean(r * r)) <= target_rms:
-            hit.append(_since(c0))
-        return r
-
-    for _ in range(starts):
-        pos = lo > 0
-        x0 = np.where(
-            pos,
-            np.exp(rng.uniform(np.log(np.where(pos, lo, 1.0)), np.log(np.where(pos, hi, 1.0)))),
-            rng.uniform(lo, hi),
-        )
-        res = least_squares(
-            fun, x0, bounds=(lo, hi), method="trf", x_scale="jac", max_nfev=max_nfev
-        )
-        nfev += res.nfev
-        rms = float(np.sqrt(np.mean(res.fun**2)))
-        reached += rms <= target_rms
-        if rms < best[0]:
-            best = (rms, res.x)
-    params = par.params(best[1][: len(par.names)]) if best[1] is not None else {}
-    return MultiStart(
-        best[0],
-        params,
-        nfev,
-        int(reached),
-        hit[0][0] if hit else None,
-        hit[0][1] if hit else None,
-    )
 
 
 def pysindy_release(fd: FitData) -> tuple[float, str, list[str]]:

@@ -14,6 +14,7 @@ from hystdisc.data import load
 from hystdisc.discovery import FAMILY_SHAPE
 from hystdisc.estimator import Discovery
 from hystdisc.fitting import OutputErrorFitter
+from hystdisc.measurement.prepare import prepare_data
 
 ROOT = Path(__file__).resolve().parents[1]
 rig = ROOT / "data_synth/rigs/utfsm_mr_damper.toml"
@@ -45,8 +46,8 @@ for g, idx in groups.items():
         shapes=(FAMILY_SHAPE["bouc-wen-std"],),
     ).fit(ds.subset(train))
     fit = d.final_fit_
-    _, fd = Discovery(model="bouc-wen-std")._prepare(ds.subset(idx))
-    _, fdm = Discovery(model="bouc-wen-std")._prepare(withf.subset(idx))
+    fd = prepare_data(ds.subset(idx))[1]
+    fdm = prepare_data(withf.subset(idx))[1]
     f = OutputErrorFitter(fd, fit.par)
     v = np.concatenate([fit.x, fd.nuisance_start(f.state)])
     x, nu = f._split(v)
