@@ -119,6 +119,23 @@ class DiscoverTiming:
         return statistics.median(self.cpu)
 
 
+def _time_once(args: list[str]) -> tuple[float, float, Results]:
+    """Wall and CPU of one ``hystdisc discover ARGS`` in a fresh interpreter, its results."""
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "results.json"
+        cmd = [sys.executable, "-m", "hystdisc", "discover", *args, "--json", str(out)]
+        cmd += ["--force", "--quiet"]
+        r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+        t0 = time.perf_counter()
+        proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
+        wall = time.perf_counter() - t0
+        r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+        if proc.returncode != 0:
+            raise RuntimeError(f"discover {' '.join(args)} failed: {proc.stderr.strip()}")
+        cpu = (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime)
+        return wall, cpu, Results.load(out)
+
+
 def time_cli_discover(
     path: str | Path, repeats: int = 3, extra: list[str] | None = None
 ) -> DiscoverTiming:
@@ -139,23 +156,11 @@ def time_cli_discover(
         Per-call wall and CPU (user + system of the child) times and the last results.json.
     """
     wall, cpu = [], []
-    with tempfile.TemporaryDirectory() as tmp:
-        out = Path(tmp) / "results.json"
-        cmd = [sys.executable, "-m", "hystdisc", "discover", str(path), "--json", str(out)]
-        cmd += ["--force", "--quiet", *(extra or [])]
-        for k in range(repeats + 1):
-            r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
-            t0 = time.perf_counter()
-            proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
-            t1 = time.perf_counter()
-            r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
-            if proc.returncode != 0:
-                raise RuntimeError(f"discover failed: {proc.stderr.strip()}")
-            if k == 0:
-                continue  # warm-up: numba's on-disk compile cache, OS file cache
-            wall.append(t1 - t0)
-            cpu.append((r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime))
-        results = Results.load(out)
+    for k in range(repeats + 1):
+        w, c, results = _time_once([str(path), *(extra or [])])
+        if k > 0:  # the first is the warm-up: numba's on-disk compile cache, OS file cache
+            wall.append(w)
+            cpu.append(c)
     return DiscoverTiming(wall, cpu, results)
 
 
@@ -405,23 +410,6 @@ class RealTiming:
     cpu: float
     results: Results
     target: float | None  # the issue's target wall time, if it sets one
-
-
-def _time_once(args: list[str]) -> tuple[float, float, Results]:
-    """Wall and CPU of one ``hystdisc discover ARGS`` in a fresh interpreter, its results."""
-    with tempfile.TemporaryDirectory() as tmp:
-        out = Path(tmp) / "results.json"
-        cmd = [sys.executable, "-m", "hystdisc", "discover", *args, "--json", str(out)]
-        cmd += ["--force", "--quiet"]
-        r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
-        t0 = time.perf_counter()
-        proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
-        wall = time.perf_counter() - t0
-        r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
-        if proc.returncode != 0:
-            raise RuntimeError(f"discover {' '.join(args)} failed: {proc.stderr.strip()}")
-        cpu = (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime)
-        return wall, cpu, Results.load(out)
 
 
 def real_sets(root: Path, work: Path) -> list[RealTiming]:
