@@ -38,16 +38,16 @@ the model's own predictions.
 
 Examples
 --------
->>> rng = np.random.default_rng(0)
 >>> t = np.arange(4000) / 1000.0
->>> w = np.cos(2 * np.pi * t)
->>> round(float(np.mean(play(np.sin(2 * np.pi * t), 0.1) - np.sin(2 * np.pi * t))), 3)
-0.0
+>>> th = np.sin(2 * np.pi * t)
+>>> gap = term_column("play(theta,0.1)-theta", th, np.gradient(th, t), 0.0, t)
+>>> round(float(np.mean(gap)), 3), round(float(np.max(np.abs(gap))), 3)
+(0.0, 0.1)
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -55,10 +55,10 @@ import pysindy as ps
 
 from hystdisc.closing.library_heldout import HeldOutTerms, heldout_terms
 from hystdisc.closing.scores import equation_state
+from hystdisc.closing.term_columns import FIXED, bias_name, play_names, tanh_name, term_column
 from hystdisc.discovery.selection import seeded_fit
 from hystdisc.fitting import OutputErrorFitter
 from hystdisc.models import EFFECTS, TORQUE_TERMS, TermModel
-from hystdisc.models.backlash import play
 from hystdisc.registry import get_experiment
 from hystdisc.stats import bic
 
@@ -191,48 +191,18 @@ class ResidualTerms:
         return out
 
 
-Signals = tuple[np.ndarray, np.ndarray, np.ndarray, float, float]
-Column = Callable[[np.ndarray, np.ndarray, np.ndarray, float, np.ndarray], np.ndarray]
-
-
-def _open_terms(levels: Sequence[float], w_max: float, half: float) -> dict[str, Column]:
-    """The candidates beyond the catalogue: ``name -> f(theta, theta_dot, z, i, t)``;
-    ``w_max`` is the largest ``|theta_dot|``, ``half`` the runs' median half-range."""
-    pos = lambda a: (a > 0).astype(float)  # noqa: E731
-    out: dict[str, Column] = {
-        "i": lambda th, w, z, i, t: np.full(th.size, i),
-        "theta^2": lambda th, w, z, i, t: th * th,
-        "theta_dot^3": lambda th, w, z, i, t: w**3,
-        "sign(theta_dot)*|theta_dot|^0.5": lambda th, w, z, i, t: np.sign(w) * np.sqrt(np.abs(w)),
-        "[theta_dot>0]": lambda th, w, z, i, t: pos(w),
-        "theta_dot*[theta_dot>0]": lambda th, w, z, i, t: w * pos(w),
-        "theta*[theta>0]": lambda th, w, z, i, t: th * pos(th),
-        "i*[theta_dot>0]": lambda th, w, z, i, t: i * pos(w),
-    }
-    for lv in levels[2:]:  # with "1" and "i": any bias per level
-        out[f"bias[i={lv:g} A]"] = lambda th, w, z, i, t, lv=lv: np.full(
-            th.size, float(abs(i - lv) <= 1e-9 * max(1.0, abs(lv)))
-        )
+def _open_terms(levels: Sequence[float], w_max: float, half: float) -> list[str]:
+    """The candidates beyond the catalogue, by name (:func:`~hystdisc.closing.term_columns.term_column`
+    computes each); ``w_max`` is the largest ``|theta_dot|``, ``half`` the runs' median
+    half-range."""
+    names = ["i", *FIXED, "i*[theta_dot>0]"]
+    names += [bias_name(lv) for lv in levels[2:]]  # with "1" and "i": any bias per level
     for s in TANH_SCALES:
-        v0 = s * w_max
-        out[f"tanh(theta_dot/{v0:.3g})"] = lambda th, w, z, i, t, v0=v0: np.tanh(w / v0)
-        out[f"i*tanh(theta_dot/{v0:.3g})"] = lambda th, w, z, i, t, v0=v0: i * np.tanh(w / v0)
+        names += [tanh_name(s * w_max), "i*" + tanh_name(s * w_max)]
     for share in PLAY_WIDTHS:
-        r = float(f"{share * half:.3g}")  # the width its name says
-
-        def gap(th, w, z, i, t, r=r):
-            return play(np.ascontiguousarray(th, dtype=np.float64), r) - th
-
-        def lost(th, w, z, i, t, r=r):
-            g = gap(th, w, z, i, t, r)
-            return np.gradient(g, t) if th.size > 1 else np.zeros(th.size)
-
-        out[f"play(theta,{r:g})-theta"] = gap
-        out[f"d/dt[play(theta,{r:g})-theta]"] = lost
-        out[f"i*d/dt[play(theta,{r:g})-theta]"] = lambda th, w, z, i, t, f=lost: (
-            i * f(th, w, z, i, t)
-        )
-    return {k: f for k, f in out.items() if k not in TORQUE_TERMS}  # catalogued: one name
+        gap, lost = play_names(float(f"{share * half:.3g}"))  # the width its name says
+        names += [gap, lost, "i*" + lost]
+    return [n for n in dict.fromkeys(names) if n not in TORQUE_TERMS]  # catalogued: one name
 
 
 def play_width(name: str) -> float | None:
@@ -311,7 +281,7 @@ def candidate_library(eq, tm: TermModel) -> tuple[list[str], np.ndarray, np.ndar
             pred = pred + tm.J * eq.theta_ddot[k][m]
             A = np.column_stack([eq.theta_ddot[k][m], A])
         cols = [np.broadcast_to(tm.term(n, th, w, zk, i), th.shape)[m] for n in catalogue]
-        cols += [np.asarray(f(th, w, zk, i, t), dtype=float)[m] for f in opened.values()]
+        cols += [term_column(n, th, w, i, t)[m] for n in opened]
         A_rows.append(A)
         G_rows.append(np.column_stack(cols))
         res.append(eq.target[k][m] - pred)
@@ -403,7 +373,7 @@ def regress_output_residual(data, fit, seed: int = 0) -> ResidualTerms:
         z = np.zeros_like(th)
         tm = TermModel({})
         block = [np.broadcast_to(tm.term(n, th, w, z, i), th.shape)[m] for n in catalogue]
-        block += [np.asarray(f(th, w, z, i, t), dtype=float)[m] for f in opened.values()]
+        block += [term_column(n, th, w, i, t)[m] for n in opened]
         cols.append(np.column_stack(block))
     G = np.vstack(cols)
     of_run = np.repeat(np.arange(data.n_runs), [int(m.sum()) for m in data.mask])

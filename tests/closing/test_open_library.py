@@ -19,13 +19,13 @@ import pytest
 from hystdisc import Discovery
 from hystdisc.closing.open_library import (
     MIN_INCLUSION,
-    play,
     play_width,
     regress_output_residual,
     regress_residual,
 )
 from hystdisc.data import Dataset, Run
 from hystdisc.models import Model
+from hystdisc.models.backlash import play
 from hystdisc.simulation.synth import generate
 
 FAMILY = "bouc-wen-std"
