@@ -76,6 +76,15 @@ def run(args: argparse.Namespace) -> int:
             f"{', '.join(res.families)}"
         )
     tm = res.simulation_model(args.family)
+    refit = res.open_library.refit if res.open_library is not None else None
+    if refit is not None and refit.accepted and not args.family:
+        warnings.warn(
+            f"{args.results}: the open library's accepted terms ({refit.equation}) are not "
+            "in this prediction, which is the catalogued model's alone; their held-out "
+            "error is in open_library.refit",
+            HystdiscWarning,
+            stacklevel=1,
+        )
     data = _load_for(res, args)
     hold = res.input_hold or "cubic"
     if hold not in HOLDS:

@@ -33,8 +33,10 @@ set is evidence, and only a refit that predicts held-out conditions better is a 
 On a driven test's force residual the stable terms are judged so (:func:`~hystdisc.closing.library_heldout.heldout_terms`):
 each test condition is left out, the model's parameters (linearized at the optimum) and
 the terms' coefficients are refitted on the others, and the held-out RMS with the terms is
-reported beside the one without (:attr:`ResidualTerms.heldout`). The terms do not enter
-the model's own predictions.
+reported beside the one without (:attr:`ResidualTerms.heldout`). When that screen says
+they predict better, the terms are refitted into the model by output error and judged on
+held-out conditions like every effect (:func:`~hystdisc.closing.library_refit.refit_terms`,
+:attr:`ResidualTerms.refit`).
 
 Examples
 --------
@@ -54,6 +56,7 @@ import numpy as np
 import pysindy as ps
 
 from hystdisc.closing.library_heldout import HeldOutTerms, heldout_terms
+from hystdisc.closing.library_refit import TermsRefit
 from hystdisc.closing.scores import equation_state
 from hystdisc.closing.term_columns import FIXED, bias_name, play_names, tanh_name, term_column
 from hystdisc.discovery.selection import seeded_fit
@@ -126,6 +129,9 @@ class ResidualTerms:
     heldout : ~hystdisc.closing.library_heldout.HeldOutTerms or None
         The stable terms judged on held-out conditions (:func:`~hystdisc.closing.library_heldout.heldout_terms`; None: not
         judged, a test whose output is not the force or a single condition).
+    refit : ~hystdisc.closing.library_refit.TermsRefit or None
+        The terms refitted into the model by output error and judged on held-out
+        conditions (:func:`~hystdisc.closing.library_refit.refit_terms`; None: not refitted).
     """
 
     terms: list[DiscoveredTerm] = field(default_factory=list)
@@ -133,6 +139,7 @@ class ResidualTerms:
     effects: list[str] = field(default_factory=list)
     candidates: int = 0
     heldout: HeldOutTerms | None = None
+    refit: TermsRefit | None = None
 
     @property
     def discovered(self) -> list[DiscoveredTerm]:
@@ -175,6 +182,8 @@ class ResidualTerms:
             lines.append("  " + self.equation())
         if self.heldout is not None:
             lines.append("  " + self.heldout.sentence())
+        if self.refit is not None:
+            lines += ["  " + self.refit.equation(), "  " + self.refit.sentence()]
         return "\n".join(lines)
 
     def to_dict(self) -> dict:
@@ -188,6 +197,8 @@ class ResidualTerms:
         }
         if self.heldout is not None:
             out["heldout"] = self.heldout.to_dict()
+        if self.refit is not None:
+            out["refit"] = self.refit.to_dict()
         return out
 
 

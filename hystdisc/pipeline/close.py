@@ -15,6 +15,7 @@ from collections.abc import Callable
 
 from hystdisc.closing import LoopResult, close_loop
 from hystdisc.closing.again import compare_again
+from hystdisc.closing.library_refit import TermsRefit, refit_terms
 from hystdisc.closing.open_library import (
     ResidualTerms,
     regress_output_residual,
@@ -132,6 +133,22 @@ def open_library(state: State, fit: OEFit) -> ResidualTerms | None:
     return regress_residual(state.eq, fit.term_part, seed=state.options.seed)
 
 
+def refit_library(state: State, lib: ResidualTerms, fit: OEFit) -> TermsRefit | None:
+    """The open library's stable terms refitted into ``fit``'s model by output error and
+    judged on held-out conditions (:func:`~hystdisc.closing.library_refit.refit_terms`),
+    when the linearized screen (:attr:`ResidualTerms.heldout`) says they predict the
+    held-out conditions better; None otherwise (a test whose output is not the force has
+    no such screen)."""
+    h = lib.heldout
+    if not lib.terms or h is None or not h.after < h.before:
+        return None
+    state.say("closing the loop: the open library's terms refitted into the model, held out")
+    return refit_terms(
+        state.fd, fit, [t.name for t in lib.terms], floor=state.noise_std,
+        max_nfev=state.options.max_nfev, envelope=state.envelope,
+    )  # fmt: skip
+
+
 def close(state: State, fit_family: Callable) -> None:
     """The loop, the comparison again, equal fits, the final model and its admissibility.
 
@@ -174,6 +191,10 @@ def close(state: State, fit_family: Callable) -> None:
             )
     else:
         state.open_library = None
+    if state.open_library is not None:
+        state.open_library.refit = failures.guard(
+            "open library refit", refit_library, state, state.open_library, state.final_fit
+        )
     kept = [v.entry.name for v in state.measured if v.entry is not None]
     state.effects = kept + ([] if state.loop is None else list(state.loop.effects))
     final = state.final_fit

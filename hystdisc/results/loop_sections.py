@@ -201,6 +201,60 @@ class LibraryHeldOutRecord(Record):
 
 
 @dataclass
+class LibraryRefitRecord(Record):
+    """``open_library.refit``: the stable terms refitted into the model by output error
+    and judged on held-out conditions (:class:`hystdisc.closing.library_refit.TermsRefit`).
+
+    Attributes
+    ----------
+    terms : list of str
+        The terms.
+    coefficients, stderr : dict of str to float
+        Each term's refitted coefficient and standard error.
+    params : dict of str to float
+        The model's free parameters refitted with the terms.
+    rms_before, rms_after, bic_before, bic_after : float
+        In-sample RMS and BIC without and with the terms.
+    heldout_before, heldout_after : float or None
+        Pooled held-out RMS (each condition left out, both models refitted on the others).
+    fold_before, fold_after : list of float
+        Each condition's held-out RMS.
+    lower : int
+        The conditions the terms predict better.
+    excess_share : float
+        Share of the residual's excess over the floor they remove.
+    admissible, accepted : bool
+        The model with them is admissible; the verdict.
+    note : str
+        Why, in words.
+    equation : str
+        ``F_extra = ...`` with the refitted coefficients.
+    extra : dict
+        Keys this version does not know.
+    """
+
+    terms: list[str] = field(default_factory=list)
+    coefficients: dict[str, float] = field(default_factory=dict)
+    stderr: dict[str, float] = field(default_factory=dict)
+    params: dict[str, float] = field(default_factory=dict)
+    rms_before: float | None = None
+    rms_after: float | None = None
+    bic_before: float | None = None
+    bic_after: float | None = None
+    heldout_before: float | None = None
+    heldout_after: float | None = None
+    fold_before: list[float] = field(default_factory=list)
+    fold_after: list[float] = field(default_factory=list)
+    lower: int = 0
+    excess_share: float | None = None
+    admissible: bool = False
+    accepted: bool = False
+    note: str = ""
+    equation: str = ""
+    extra: dict[str, Any] = field(default_factory=dict, repr=False)
+
+
+@dataclass
 class OpenLibraryRecord(Record):
     """``open_library``: what the open library found in a residual the catalogue left
     (:class:`hystdisc.closing.open_library.ResidualTerms`).
@@ -219,11 +273,17 @@ class OpenLibraryRecord(Record):
         The discovered effect's equation.
     heldout : LibraryHeldOutRecord or None
         The terms judged on held-out conditions (None: not judged).
+    refit : LibraryRefitRecord or None
+        The terms refitted into the model and judged held out (None: not refitted).
     extra : dict
         Keys this version does not know.
     """
 
-    _nested = {"terms": list_of(LibraryTermRecord), "heldout": record_of(LibraryHeldOutRecord)}
+    _nested = {
+        "terms": list_of(LibraryTermRecord),
+        "heldout": record_of(LibraryHeldOutRecord),
+        "refit": record_of(LibraryRefitRecord),
+    }
 
     terms: list[LibraryTermRecord] = field(default_factory=list)
     explained: float | None = None
@@ -231,6 +291,7 @@ class OpenLibraryRecord(Record):
     candidates: int = 0
     equation: str = ""
     heldout: LibraryHeldOutRecord | None = None
+    refit: LibraryRefitRecord | None = None
     extra: dict[str, Any] = field(default_factory=dict, repr=False)
 
 

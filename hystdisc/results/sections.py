@@ -30,6 +30,7 @@ from hystdisc.results.loop_sections import (
     FitSummaryRecord,
     LawLevelRecord,
     LibraryHeldOutRecord,
+    LibraryRefitRecord,
     LibraryTermRecord,
     OpenLibraryRecord,
     ReductionRecord,
@@ -459,6 +460,7 @@ SECTION_RECORDS: tuple[type[Record], ...] = (
     FitSummaryRecord,
     LibraryTermRecord,
     LibraryHeldOutRecord,
+    LibraryRefitRecord,
     LawLevelRecord,
     CurrentLawRecord,
 )
@@ -477,6 +479,7 @@ __all__ = [
     "FitSummaryRecord",
     "LawLevelRecord",
     "LibraryHeldOutRecord",
+    "LibraryRefitRecord",
     "LibraryTermRecord",
     "MotionNoiseRecord",
     "NoiseRecord",

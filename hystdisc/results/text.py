@@ -235,6 +235,42 @@ def open_library_lines(lib: OpenLibraryRecord | None) -> list[str]:
             f"linearized): {h.before:.4g} -> {h.after:.4g}, lower in {h.lower} of {h.folds} "
             "conditions"
         )
+    return out + library_refit_lines(lib.refit)
+
+
+def library_refit_lines(refit) -> list[str]:
+    """The open library's terms refitted into the model (``open_library.refit``): the
+    equation with its coefficients and the held-out verdict.
+
+    Examples
+    --------
+    >>> from hystdisc.results.sections import LibraryRefitRecord
+    >>> r = LibraryRefitRecord.from_dict({"terms": ["i"], "coefficients": {"i": -20.3},
+    ...     "stderr": {"i": 0.4}, "rms_before": 41.2, "rms_after": 15.1,
+    ...     "heldout_before": 46.6, "heldout_after": 15.3, "fold_after": [1] * 6,
+    ...     "lower": 6, "accepted": True, "note": "they remove 88% of the excess",
+    ...     "equation": "F_extra = -20.3*i"})
+    >>> for line in library_refit_lines(r):
+    ...     print(line)
+      refitted into the model by output error: F_extra = -20.3*i
+        i = -20.3 +/- 0.4 (s.e.)
+        RMS 41.2 -> 15.1, held out 46.6 -> 15.3 (each condition left out, both models refitted; lower in 6 of 6): ACCEPTED, they remove 88% of the excess
+    """
+    if refit is None:
+        return []
+    out = [f"  refitted into the model by output error: {refit.equation}"]
+    out += [f"    {n} = {refit.coefficients[n]:.4g} +/- {refit.stderr.get(n, float('nan')):.2g} (s.e.)"
+            for n in refit.terms]  # fmt: skip
+    held = "held out: not available"
+    if refit.heldout_before is not None and refit.heldout_after is not None:
+        held = (
+            f"held out {refit.heldout_before:.4g} -> {refit.heldout_after:.4g} (each condition "
+            f"left out, both models refitted; lower in {refit.lower} of {len(refit.fold_after)})"
+        )
+    verdict = "ACCEPTED" if refit.accepted else "not accepted"
+    out.append(
+        f"    RMS {refit.rms_before:.4g} -> {refit.rms_after:.4g}, {held}: {verdict}, {refit.note}"
+    )
     return out
 
 

@@ -1,0 +1,328 @@
+"""The open library's terms refitted into the model by output error, judged held out.
+
+On a driven test (the motion imposed, the force measured) a term of the open library is a
+force of the imposed motion and the current alone (:func:`~hystdisc.closing.term_columns.term_column`):
+the model with the terms predicts ``F = F_model(theta, theta_dot, i; p) + sum_j c_j g_j``.
+:func:`refit_terms` fits the model's parameters ``p`` (and each run's initial state) with
+the coefficients ``c`` by output error, from the fit's optimum: the terms enter linearly,
+so ``c`` is projected out (variable projection: each step of ``p`` sees the residual the
+best ``c`` leaves, Kaufman's Jacobian).
+
+The verdict is the one every effect gets (:mod:`hystdisc.closing.rounds`): each test
+condition is left out in turn, the model **with** the terms and the model **without** them
+are each refitted on the other conditions from their joint optima (the same budget), and
+the left-out condition is predicted by both. The terms are accepted when
+
+* they lower BIC by more than :data:`~hystdisc.closing.refit.EFFECT_BIC_MARGIN`;
+* they remove at least :data:`~hystdisc.closing.rounds.MIN_EXCESS_SHARE` of the residual's
+  excess over the floor, or lower the held-out error of every condition (at least
+  :data:`~hystdisc.closing.rounds.MIN_FOLDS_ALL`);
+* the pooled held-out error falls;
+* the model with them is physically admissible (its own parameters:
+  :func:`~hystdisc.simulation.admissibility.check_admissible`) and still absorbs energy in
+  every training run (the terms may not make the damper a source).
+
+The term set was chosen on all the data (the open library's stability selection); what
+the folds hold out is every coefficient and parameter.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from hystdisc.closing.refit import EFFECT_BIC_MARGIN
+from hystdisc.closing.rounds import MIN_EXCESS_SHARE, MIN_FOLDS_ALL
+from hystdisc.closing.term_columns import term_column
+from hystdisc.data.envelope import Envelope
+from hystdisc.errors import HystdiscError
+from hystdisc.fitting import OEFit, OutputErrorFitter
+from hystdisc.fitting.lm import levenberg_marquardt
+from hystdisc.simulation.admissibility import check_admissible
+from hystdisc.stats import bic
+
+
+@dataclass
+class TermsRefit:
+    """The open library's terms refitted into the model and judged on held-out conditions.
+
+    Attributes
+    ----------
+    terms : list of str
+        The terms' names (their formulas).
+    coefficients, stderr : dict of str to float
+        Each term's refitted coefficient and its standard error (output units per the
+        term's unit).
+    params : dict of str to float
+        The model's free parameters refitted with the terms.
+    rms_before, rms_after : float
+        In-sample RMS without and with the terms.
+    bic_before, bic_after : float
+        BIC without and with them.
+    heldout_before, heldout_after : float or None
+        Pooled held-out RMS (each condition left out, both models refitted on the others);
+        None when a fold diverged.
+    fold_before, fold_after : list of float
+        Each condition's held-out RMS.
+    excess_share : float
+        Share of the residual's excess over the floor (``RSS - N floor^2``) they remove.
+    admissible : bool
+        The model's own parameters are admissible and the whole model absorbs energy in
+        every training run.
+    accepted : bool
+        The verdict (see the module docstring).
+    note : str
+        Why, in words.
+
+    Examples
+    --------
+    >>> r = TermsRefit(["bias[i=1 A]"], {"bias[i=1 A]": 29.5}, {"bias[i=1 A]": 0.4}, {},
+    ...                46.1, 15.2, -10.0, -900.0, 46.6, 15.4, [46.6], [15.4], 0.9, True, True)
+    >>> print(r.equation())
+    F_extra = 29.5*bias[i=1 A]
+    """
+
+    terms: list[str]
+    coefficients: dict[str, float]
+    stderr: dict[str, float]
+    params: dict[str, float]
+    rms_before: float
+    rms_after: float
+    bic_before: float
+    bic_after: float
+    heldout_before: float | None
+    heldout_after: float | None
+    fold_before: list[float] = field(default_factory=list)
+    fold_after: list[float] = field(default_factory=list)
+    excess_share: float = 0.0
+    admissible: bool = False
+    accepted: bool = False
+    note: str = ""
+
+    @property
+    def lower(self) -> int:
+        """The held-out conditions the terms predict better."""
+        return sum(a < b for a, b in zip(self.fold_after, self.fold_before, strict=True))
+
+    def equation(self) -> str:
+        """The refitted terms as an equation of the extra force."""
+        parts = [f"{self.coefficients[n]:+.4g}*{n}" for n in self.terms]
+        text = " ".join(parts).lstrip("+")
+        return "F_extra = " + text.replace(" +", " + ").replace(" -", " - ")
+
+    def sentence(self) -> str:
+        """One line: the verdict with the held-out error before and after."""
+        verdict = "accepted" if self.accepted else "not accepted"
+        held = (
+            f"held out {self.heldout_before:.4g} -> {self.heldout_after:.4g} (lower in "
+            f"{self.lower} of {len(self.fold_after)} conditions)"
+            if self.heldout_before is not None and self.heldout_after is not None
+            else "held out: not available"
+        )
+        return (
+            f"refitted into the model by output error: RMS {self.rms_before:.4g} -> "
+            f"{self.rms_after:.4g}, {held}: {verdict} ({self.note})"
+        )
+
+    def to_dict(self) -> dict:
+        """The ``results.json`` form."""
+        return dataclasses.asdict(self) | {"equation": self.equation(), "lower": self.lower}
+
+
+def columns(data, names: Sequence[str], runs: Sequence[int] | None = None) -> np.ndarray:
+    """The terms ``names`` on the masked samples of ``data``'s runs (all, or ``runs``), in
+    the fitter's row order."""
+    runs = range(data.n_runs) if runs is None else runs
+    blocks = []
+    for k in runs:
+        th, w, t = data.theta[k], data.theta_dot[k], data.t[k]
+        i, m = float(data.currents[k]), data.mask[k]
+        blocks.append(np.column_stack([term_column(n, th, w, i, t)[m] for n in names]))
+    return np.vstack(blocks)
+
+
+def _projector(G: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
+    """``x -> x - P_G x``: what is left of ``x`` (vector or matrix) beside ``G``'s span."""
+    q, _ = np.linalg.qr(G / np.sqrt(np.mean(G**2, axis=0)))
+    return lambda x: x - q @ (q.T @ x)
+
+
+def _fit(fitter: OutputErrorFitter, v0: np.ndarray, G: np.ndarray | None, iters: int):
+    """Output-error fit from ``v0`` (parameters, then the runs' initial states), with the
+    linear terms ``G`` projected out when given. Returns the vector, the residual
+    (simulated minus measured, the terms' best contribution included) and the terms'
+    coefficients."""
+    npar = len(fitter.par.names)
+    lo = np.concatenate([fitter.par.lower, np.full(v0.size - npar, -np.inf)])
+    hi = np.concatenate([fitter.par.upper, np.full(v0.size - npar, np.inf)])
+    if G is None:
+        fun, jac = fitter.residuals, fitter.jacobian
+    else:
+        proj = _projector(G)
+        fun = lambda v: proj(fitter.residuals(v))  # noqa: E731
+        jac = lambda v: proj(fitter.jacobian(v))  # noqa: E731
+    with np.errstate(all="ignore"):
+        v, *_ = levenberg_marquardt(fun, jac, v0, lo, hi, max_iter=iters)
+        r = fitter.residuals(v)
+    if G is None:
+        return v, r, np.zeros(0)
+    c = -np.linalg.lstsq(G, r, rcond=None)[0]
+    return v, r + G @ c, c
+
+
+def _absorbs(data, fit: OEFit, resid: np.ndarray, offsets: np.ndarray) -> bool:
+    """The predicted force (measured plus the residual) times the velocity, summed over
+    each training run, is positive: the model absorbs energy in every run."""
+    for k in range(data.n_runs):
+        m = data.mask[k]
+        f = data.y[k][m] + resid[offsets[k] : offsets[k + 1]]
+        if not float(np.sum(f * data.theta_dot[k][m])) > 0.0:
+            return False
+    return True
+
+
+def refit_terms(
+    data,
+    fit: OEFit,
+    names: Sequence[str],
+    floor: float,
+    max_nfev: int = 60,
+    envelope=None,
+) -> TermsRefit:
+    """Refit the model of ``fit`` with the terms ``names`` by output error and judge them
+    on held-out conditions (see the module docstring).
+
+    Parameters
+    ----------
+    data : FitData
+        The fit's data, a driven test (the force is the output).
+    fit : OEFit
+        The model's fit at its optimum.
+    names : sequence of str
+        The terms (names :func:`~hystdisc.closing.term_columns.term_column` knows).
+    floor : float
+        The measurement's floor (repeatability or noise), the output's units.
+    max_nfev : int
+        Iterations of each fit (the joint one and each fold's, with and without the terms).
+    envelope : Envelope, optional
+        The training envelope of the admissibility check.
+
+    Returns
+    -------
+    TermsRefit
+
+    Raises
+    ------
+    ValueError
+        For a test whose output is not the force, or no term.
+    """
+    if data.exp.output != "torque":
+        raise ValueError("the open library's terms are refitted on a force output (driven)")
+    names = list(names)
+    if not names:
+        raise ValueError("no term to refit")
+    par = fit.par.like(dict(fit.params), fit.par.effects)
+    fitter = OutputErrorFitter(data, par, max_nfev=max_nfev)
+    v_fit = np.concatenate([par.x0, np.asarray(fit.nuisance, dtype=float).ravel()])
+    G = columns(data, names)
+    v, resid, c = _fit(fitter, v_fit, G, max_nfev)
+    npar = len(par.names)
+    n, p = resid.size, len(names)
+    n_eff = float(data.n_eff()) if any(data.run_filters()) else float(n)
+    rss = float(resid @ resid)
+    k0 = fit.n_params
+    bic_after = bic(rss, n, k0 + p, n_eff=n_eff)
+    # the coefficients' standard errors from the whole Jacobian at the optimum
+    with np.errstate(all="ignore"):
+        J = np.column_stack([fitter.jacobian(v), G])
+    sc = np.sqrt(np.mean(J**2, axis=0))
+    sc[sc == 0] = 1.0
+    cov = np.linalg.pinv((J / sc).T @ (J / sc)) / np.outer(sc, sc) * rss / max(n - J.shape[1], 1)
+    se = np.sqrt(np.clip(np.diag(cov)[-p:], 0.0, None) * n / n_eff)
+    excess = fit.rss - fit.n_obs * floor**2
+    share = (fit.rss - rss) / excess if excess > 0 else 0.0
+    moved = dataclasses.replace(fit, x=v[:npar], nuisance=v[npar:].reshape(fit.nuisance.shape))
+    if envelope is None:
+        envelope = Envelope.from_runs(data.names, data.t, data.theta, data.theta_dot, data.currents)
+    adm = check_admissible(moved.model if moved.is_system else moved.term_part, envelope)
+    absorbs = _absorbs(data, fit, resid, fitter.row_offsets)
+    out = TermsRefit(
+        terms=names,
+        coefficients=dict(zip(names, map(float, c), strict=True)),
+        stderr=dict(zip(names, map(float, se), strict=True)),
+        params=dict(zip(par.names, map(float, v[:npar]), strict=True)),
+        rms_before=float(fit.rms),
+        rms_after=float(np.sqrt(rss / n)),
+        bic_before=float(fit.bic),
+        bic_after=float(bic_after),
+        heldout_before=None,
+        heldout_after=None,
+        excess_share=float(share),
+        admissible=bool(adm.ok and absorbs),
+    )
+    out.heldout_before, out.fold_before, out.heldout_after, out.fold_after = _heldout(
+        data, par, v_fit, v, names, max_nfev
+    )
+    out.accepted, out.note = _verdict(out, adm.violations[0] if not adm.ok else None, absorbs)
+    return out
+
+
+def _heldout(data, par, v_without, v_with, names, iters):
+    """Each condition left out: both models refitted on the others from their joint
+    optima, the condition predicted. Returns the pooled RMS and each fold's, without and
+    with the terms (None pooled when a prediction diverged)."""
+    npar = len(par.names)
+    nnu = (v_without.size - npar) // data.n_runs
+    sq = [0.0, 0.0]
+    folds: list[list[float]] = [[], []]
+    count = 0
+    for fold in data.folds():
+        train = [k for k in range(data.n_runs) if k not in fold]
+        sub = OutputErrorFitter(data.subset(train), par, max_nfev=iters)
+        test = OutputErrorFitter(data.subset(fold), par, max_nfev=iters)
+        G_train, G_test = columns(data, names, train), columns(data, names, fold)
+        for j, (v0, G) in enumerate(((v_without, None), (v_with, G_train))):
+            nu = v0[npar:].reshape(data.n_runs, nnu)
+            start = np.concatenate([v0[:npar], nu[train].ravel()])
+            try:
+                vf, _, c = _fit(sub, start, G, iters)
+            except (HystdiscError, np.linalg.LinAlgError, ValueError):
+                return None, [], None, []
+            with np.errstate(all="ignore"):
+                e = test.residuals(np.concatenate([vf[:npar], nu[fold].ravel()]))
+            if G is not None:
+                e = e + G_test @ c
+            if not np.all(np.isfinite(e)):
+                return None, [], None, []
+            sq[j] += float(e @ e)
+            folds[j].append(float(np.sqrt(np.mean(e**2))))
+        count += G_test.shape[0]
+    pooled = [float(np.sqrt(s / max(count, 1))) for s in sq]
+    return pooled[0], folds[0], pooled[1], folds[1]
+
+
+def _verdict(r: TermsRefit, violation: str | None, absorbs: bool) -> tuple[bool, str]:
+    """The acceptance rule of the module docstring, and why in words."""
+    if violation is not None:
+        return False, f"the model with them is not physical: {violation}"
+    if not absorbs:
+        return False, "the model with them gives energy in a training run"
+    if not r.bic_after < r.bic_before - EFFECT_BIC_MARGIN:
+        return False, "BIC does not fall by the margin"
+    if r.heldout_before is None or r.heldout_after is None:
+        return False, "a held-out prediction diverged"
+    if not r.heldout_after < r.heldout_before:
+        return False, "they do not lower the held-out error"
+    folds = len(r.fold_after)
+    every = r.lower == folds and folds >= MIN_FOLDS_ALL
+    if r.excess_share < MIN_EXCESS_SHARE and not every:
+        return False, (
+            f"they remove only {r.excess_share:.0%} of the residual's excess over the floor"
+        )
+    return True, (
+        f"they remove {r.excess_share:.0%} of the excess over the floor and predict "
+        f"{r.lower} of {folds} held-out conditions better"
+    )
