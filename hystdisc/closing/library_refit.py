@@ -19,8 +19,9 @@ the left-out condition is predicted by both. The terms are accepted when
   :data:`~hystdisc.closing.rounds.MIN_FOLDS_ALL`);
 * the pooled held-out error falls;
 * the model with them is physically admissible (its own parameters:
-  :func:`~hystdisc.simulation.admissibility.check_admissible`) and still absorbs energy in
-  every training run (the terms may not make the damper a source).
+  :func:`~hystdisc.simulation.admissibility.check_admissible`), still absorbs energy in
+  every training run (the terms may not make the damper a source), and the terms in the
+  position alone do not soften to a negative stiffness within twice the training stroke.
 
 The term set was chosen on all the data (the open library's stability selection); what
 the folds hold out is every coefficient and parameter.
@@ -184,6 +185,27 @@ def _absorbs(data, fit: OEFit, resid: np.ndarray, offsets: np.ndarray) -> bool:
     return True
 
 
+def _softens(data, names: Sequence[str], coefs: np.ndarray) -> str | None:
+    """Where the terms in the position alone (``theta``, ``theta^3``, ...) make a spring of
+    negative stiffness within twice the training stroke, at any training current, in
+    words; None when they stiffen (or hold no such term). The model's own spring is
+    admissible on its own (it is refitted beside them)."""
+    own = [(n, c) for n, c in zip(names, coefs, strict=True)
+           if "theta" in n and "theta_dot" not in n and "play" not in n]  # fmt: skip
+    if not own:
+        return None
+    reach = 2.0 * max(float(np.max(np.abs(th))) for th in data.theta)
+    th = np.linspace(-reach, reach, 401)
+    zero, t = np.zeros_like(th), np.arange(th.size, dtype=float)
+    for i in sorted({float(c) for c in data.currents}):
+        f = sum(c * term_column(n, th, zero, i, t) for n, c in own)
+        k = np.diff(f) / np.diff(th)
+        if np.any(k < -1e-9 * max(float(np.max(np.abs(k))), 1e-300)):
+            at = float(th[int(np.argmin(k))])
+            return f"the terms' spring has a negative stiffness at {at:.3g} ({i:g} A)"
+    return None
+
+
 def refit_terms(
     data,
     fit: OEFit,
@@ -249,6 +271,7 @@ def refit_terms(
         envelope = Envelope.from_runs(data.names, data.t, data.theta, data.theta_dot, data.currents)
     adm = check_admissible(moved.model if moved.is_system else moved.term_part, envelope)
     absorbs = _absorbs(data, fit, resid, fitter.row_offsets)
+    soft = _softens(data, names, c)
     out = TermsRefit(
         terms=names,
         coefficients=dict(zip(names, map(float, c), strict=True)),
@@ -261,12 +284,13 @@ def refit_terms(
         heldout_before=None,
         heldout_after=None,
         excess_share=float(share),
-        admissible=bool(adm.ok and absorbs),
+        admissible=bool(adm.ok and absorbs and soft is None),
     )
     out.heldout_before, out.fold_before, out.heldout_after, out.fold_after = _heldout(
         data, par, v_fit, v, names, max_nfev
     )
-    out.accepted, out.note = _verdict(out, adm.violations[0] if not adm.ok else None, absorbs)
+    violation = adm.violations[0] if not adm.ok else soft
+    out.accepted, out.note = _verdict(out, violation, absorbs)
     return out
 
 
