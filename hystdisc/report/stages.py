@@ -208,8 +208,28 @@ class StageSections:
                     f"lower in {h['lower']} of {h['folds']} conditions. The term set was "
                     "chosen on all the data; the model's own prediction does not include it."
                 )
+            r = lib.get("refit")
+            if r:
+                self._library_refit(r)
         self._spectrum_figure(plot_residual_spectrum)
         self._residual_map()
+
+    def _library_refit(self, r: dict) -> None:
+        """The open library's terms refitted into the model (``open_library.refit``)."""
+        held = "the held-out error is not available"
+        if r.get("heldout_before") is not None and r.get("heldout_after") is not None:
+            held = (
+                f"the held-out RMS goes {num(r['heldout_before'], '.4g')} -> "
+                f"{num(r['heldout_after'], '.4g')}, lower in {r['lower']} of "
+                f"{len(r['fold_after'])} conditions"
+            )
+        verdict = "Accepted" if r.get("accepted") else "Not accepted"
+        self.p(
+            f"Refitted into the model by output error ({r['equation']}): RMS "
+            f"{num(r['rms_before'], '.4g')} -> {num(r['rms_after'], '.4g')}; each condition "
+            f"left out and both models refitted on the others, {held}. {verdict}: "
+            f"{r.get('note', '')}."
+        )
 
     def _residual_map(self) -> None:
         """Where the model misses: the residual against displacement and velocity."""

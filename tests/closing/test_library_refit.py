@@ -106,3 +106,26 @@ def test_the_record_round_trips_without_a_refit():
     assert OpenLibraryRecord.from_dict({"candidates": 3}).refit is None
     r = TermsRefit(["i"], {"i": 1.0}, {"i": 0.1}, {}, 2.0, 1.0, 0.0, -10.0, None, None)
     assert r.sentence().endswith("held out: not available: not accepted ()")
+
+
+def test_predict_says_that_accepted_terms_are_not_in_its_output(tmp_path, capsys):
+    """Until ``predict`` adds them, a results.json with accepted terms predicts with the
+    catalogued model alone, and says so in one line."""
+    import json
+
+    from hystdisc.cli import main
+    from hystdisc.data import write_csv
+    from tests.closing.test_open_library import _driven, _with_step
+
+    d = _fit("step", "tanh")
+    fit = d.family_fits_["tanh"]
+    table = json.loads(d.results_.to_json())
+    table["open_library"] = {"candidates": 1, "refit": refit_terms(
+        d.fit_data_, fit, ["[theta_dot>0]"], floor=NOISE).to_dict()}  # fmt: skip
+    res = tmp_path / "results.json"
+    res.write_text(json.dumps(table))
+    csv = write_csv(_with_step(_driven(3)), tmp_path / "step.csv")
+    assert main(["predict", str(res), str(csv), "-o", str(tmp_path / "p.csv"), "--quiet"]) == 0
+    err = capsys.readouterr().err
+    assert f"{res}: the open library's accepted terms (F_extra = " in err
+    assert "are not in this prediction, which is the catalogued model's alone" in err

@@ -173,14 +173,22 @@ def test_the_loop_reports_what_the_catalogue_left(tmp_path):
     assert lib.heldout.lower == lib.heldout.folds == 2
     assert lib.heldout.after == pytest.approx(NOISE, rel=0.1)
     assert lib.heldout.before > 2 * lib.heldout.after, lib.heldout
+    # refitted into the model by output error, both models refitted without each drive
+    fix = lib.refit
+    assert fix is not None and fix.accepted, fix
+    assert fix.coefficients["theta*[theta>0]"] == pytest.approx(ASYM, rel=0.05)
+    assert fix.heldout_after == pytest.approx(NOISE, rel=0.1) and fix.lower == 2
     res = Results.from_json(d.results_.to_json())
+    assert res.open_library.refit.accepted and res.open_library.refit.lower == 2
+    assert "refitted into the model by output error: F_extra = " in res.report()
     assert res.open_library["terms"][0]["name"] == "theta*[theta>0]"
     assert "Open library (" in res.report() and "T_extra = " in res.report()
     assert res.open_library.heldout.after == pytest.approx(lib.heldout.after, rel=1e-6)
     assert "held out (each condition left out, the model refitted" in res.report()
     html = tmp_path / "report.html"
     write_report(d, data, html)
-    assert "open library" in html.read_text(encoding="utf-8")
+    text = html.read_text(encoding="utf-8")
+    assert "open library" in text and "Refitted into the model by output error (F_extra" in text
 
 
 def test_a_play_is_mapped_to_the_catalogued_backlash_and_refitted_first(monkeypatch):
