@@ -321,7 +321,8 @@ class Discovery(BaseEstimator):
         dataset : Dataset
             Runs of the same experiment type (their motion, input and current).
         family : str, optional
-            A family's own fit; by default the selected family with the accepted effects.
+            A family's own fit; by default the selected family with the accepted effects
+            (and the open library's terms, when their refit was accepted).
 
         Returns
         -------
@@ -332,8 +333,12 @@ class Discovery(BaseEstimator):
 
         self._check_fitted()
         fit = self.final_fit_ if family is None else self.family_fits_[family or self.family_]
+        refit = self.open_library_.refit if self.open_library_ is not None else None
+        extra = None
+        if family is None and refit is not None and refit.accepted and refit.fit is not None:
+            fit, extra = refit.fit, refit.coefficients  # with the library's accepted terms
         preds = predict_dataset(
-            fit.model, dataset, self.experiment_, self.input_hold, self.detect_filter
+            fit.model, dataset, self.experiment_, self.input_hold, self.detect_filter, extra
         )
         return label_predictions(dataset, preds)
 

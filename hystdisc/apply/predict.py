@@ -19,6 +19,7 @@ from hystdisc.discovery.differentiation import differentiate
 from hystdisc.measurement.chain import measured_output, seen_motion, unfiltered_motion
 from hystdisc.measurement.motion import estimate_motion
 from hystdisc.models import TermModel
+from hystdisc.models.term_columns import term_column
 from hystdisc.registry import get_experiment
 from hystdisc.simulation import simulate_driven_runs, simulate_mech, simulate_system
 
@@ -112,13 +113,17 @@ def predict_dataset(
     experiment: str | None = None,
     input_hold: str = "cubic",
     detect_filter: bool = True,
+    extra: Mapping[str, float] | None = None,
 ) -> list[np.ndarray]:
     """Predicted measured signal (theta, or torque for driven) of every run of ``dataset``.
 
     ``tm`` is a model in term form, or a state-space model with its parameter values (a
     system family's fit: ``OEFit.model``). Driven records that declare no filter but went
     through a moving average are predicted through it (``detect_filter``:
-    :func:`~hystdisc.data.with_detected_filter`), as the fit saw its own.
+    :func:`~hystdisc.data.with_detected_filter`), as the fit saw its own. ``extra``
+    (driven): the open library's accepted terms, name -> coefficient
+    (:func:`~hystdisc.models.term_columns.term_column` of the motion and the current),
+    added to the measured force as their refit added them.
 
     Examples
     --------
@@ -141,6 +146,12 @@ def predict_dataset(
         delay, gap = float(tm.delay), float(tm.play)
     else:
         delay, gap = tm[0].output_delay(tm[1]), tm[0].input_play(tm[1])
+    added = [0.0] * len(runs)
+    if extra and exp.motion_imposed:  # on the motion as the fit's data hold it
+        added = [
+            sum(c * term_column(n, d.theta, d.theta_dot, r.current, r.t) for n, c in extra.items())
+            for r, d in zip(runs, ders, strict=True)
+        ]
     if exp.motion_imposed and (delay != 0.0 or gap != 0.0):
         # the force channel lags: the damper answered the motion delay s earlier, through
         # its backlash (as the fit sees it: hystdisc.fitting.simulate.delayed_motion)
@@ -149,7 +160,8 @@ def predict_dataset(
         delay = 0.0
     preds = _predict(tm, runs, ders, exp, input_hold)
     return [
-        measured_output(r.t, y, delay, w) for r, y, w in zip(runs, preds, out_windows, strict=True)
+        measured_output(r.t, y, delay, w) + a
+        for r, y, w, a in zip(runs, preds, out_windows, added, strict=True)
     ]
 
 

@@ -17,7 +17,8 @@ HELP = "simulate a fitted model (results.json) on new runs"
 DESCRIPTION = (
     "Simulate the model of a results.json on the runs of DATA (release from each run's "
     "first angle, driven from its motion, forced from its input) and write "
-    "run,t,current,<measured>,<measured>_pred."
+    "run,t,current,<measured>,<measured>_pred. The final model includes the open "
+    "library's terms when its refit accepted them (open_library.refit)."
 )
 
 
@@ -26,7 +27,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("results", metavar="RESULTS.json")
     p.add_argument("data", nargs="+", metavar="DATA")
     p.add_argument("-o", "--output", required=True, metavar="OUT.csv")
-    p.add_argument("--family", help="use this family's fit instead of the final model")
+    p.add_argument(
+        "--family",
+        help="use this family's fit (without effects or library terms) instead of the final model",
+    )
     add_data_options(p)
     p.add_argument("--force", action="store_true", help="overwrite OUT.csv")
     p.add_argument("--quiet", action="store_true", help="print nothing but errors")
@@ -75,16 +79,13 @@ def run(args: argparse.Namespace) -> int:
             f"{args.results}: no fit of family '{args.family}'; fix: use one of "
             f"{', '.join(res.families)}"
         )
-    tm = res.simulation_model(args.family)
     refit = res.open_library.refit if res.open_library is not None else None
+    extra = None
     if refit is not None and refit.accepted and not args.family:
-        warnings.warn(
-            f"{args.results}: the open library's accepted terms ({refit.equation}) are not "
-            "in this prediction, which is the catalogued model's alone; their held-out "
-            "error is in open_library.refit",
-            HystdiscWarning,
-            stacklevel=1,
-        )
+        # the final model with the open library's accepted terms, as they were refitted
+        tm, extra = res.simulation_model(refitted=True), dict(refit.coefficients)
+    else:
+        tm = res.simulation_model(args.family)
     data = _load_for(res, args)
     hold = res.input_hold or "cubic"
     if hold not in HOLDS:
@@ -100,7 +101,7 @@ def run(args: argparse.Namespace) -> int:
             HystdiscWarning,
             stacklevel=1,
         )
-    preds = predict_dataset(tm, data, res.experiment, hold)
+    preds = predict_dataset(tm, data, res.experiment, hold, extra=extra)
     meas = data.measured()
     lines = [f"run,t,current,{meas},{meas}_pred"]
     rms = []
@@ -115,5 +116,7 @@ def run(args: argparse.Namespace) -> int:
     if not args.quiet:
         for r, e in zip(data.runs, rms, strict=True):
             print(f"run {r.name} ({r.current:g} A): RMS {meas} error {e:.4g}")
+        if extra:
+            print(f"with the open library's accepted terms: {refit.equation}")
         print(f"wrote {out} ({len(data.runs)} runs)")
     return 0

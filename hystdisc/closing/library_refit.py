@@ -1,7 +1,7 @@
 """The open library's terms refitted into the model by output error, judged held out.
 
 On a driven test (the motion imposed, the force measured) a term of the open library is a
-force of the imposed motion and the current alone (:func:`~hystdisc.closing.term_columns.term_column`):
+force of the imposed motion and the current alone (:func:`~hystdisc.models.term_columns.term_column`):
 the model with the terms predicts ``F = F_model(theta, theta_dot, i; p) + sum_j c_j g_j``.
 :func:`refit_terms` fits the model's parameters ``p`` (and each run's initial state) with
 the coefficients ``c`` by output error, from the fit's optimum: the terms enter linearly,
@@ -37,11 +37,11 @@ import numpy as np
 
 from hystdisc.closing.refit import EFFECT_BIC_MARGIN
 from hystdisc.closing.rounds import MIN_EXCESS_SHARE, MIN_FOLDS_ALL
-from hystdisc.closing.term_columns import term_column
 from hystdisc.data.envelope import Envelope
 from hystdisc.errors import HystdiscError
 from hystdisc.fitting import OEFit, OutputErrorFitter
 from hystdisc.fitting.lm import levenberg_marquardt
+from hystdisc.models.term_columns import term_column
 from hystdisc.simulation.admissibility import check_admissible
 from hystdisc.stats import bic
 
@@ -77,6 +77,10 @@ class TermsRefit:
         The verdict (see the module docstring).
     note : str
         Why, in words.
+    fit : OEFit or None
+        The model's fit moved to the refitted parameters (its residual, RMS and intervals
+        are the catalogued model's at its own optimum; not in ``results.json``: the
+        pipeline records its model).
 
     Examples
     --------
@@ -102,6 +106,7 @@ class TermsRefit:
     admissible: bool = False
     accepted: bool = False
     note: str = ""
+    fit: OEFit | None = field(default=None, repr=False, compare=False)
 
     @property
     def lower(self) -> int:
@@ -130,7 +135,8 @@ class TermsRefit:
 
     def to_dict(self) -> dict:
         """The ``results.json`` form."""
-        return dataclasses.asdict(self) | {"equation": self.equation(), "lower": self.lower}
+        out = {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if f.name != "fit"}
+        return out | {"equation": self.equation(), "lower": self.lower}
 
 
 def columns(data, names: Sequence[str], runs: Sequence[int] | None = None) -> np.ndarray:
@@ -224,7 +230,7 @@ def refit_terms(
     fit : OEFit
         The model's fit at its optimum.
     names : sequence of str
-        The terms (names :func:`~hystdisc.closing.term_columns.term_column` knows).
+        The terms (names :func:`~hystdisc.models.term_columns.term_column` knows).
     floor : float
         The measurement's floor (repeatability or noise), the output's units.
     max_nfev : int
@@ -285,6 +291,7 @@ def refit_terms(
         heldout_after=None,
         excess_share=float(share),
         admissible=bool(adm.ok and absorbs and soft is None),
+        fit=moved,
     )
     out.heldout_before, out.fold_before, out.heldout_after, out.fold_after = _heldout(
         data, par, v_fit, v, names, max_nfev

@@ -58,10 +58,10 @@ import pysindy as ps
 from hystdisc.closing.library_heldout import HeldOutTerms, heldout_terms
 from hystdisc.closing.library_refit import TermsRefit
 from hystdisc.closing.scores import equation_state
-from hystdisc.closing.term_columns import FIXED, bias_name, play_names, tanh_name, term_column
 from hystdisc.discovery.selection import seeded_fit
 from hystdisc.fitting import OutputErrorFitter
 from hystdisc.models import EFFECTS, TORQUE_TERMS, TermModel
+from hystdisc.models.term_columns import FIXED, bias_name, play_names, tanh_name, term_column
 from hystdisc.registry import get_experiment
 from hystdisc.stats import bic
 
@@ -203,7 +203,7 @@ class ResidualTerms:
 
 
 def _open_terms(levels: Sequence[float], w_max: float, half: float) -> list[str]:
-    """The candidates beyond the catalogue, by name (:func:`~hystdisc.closing.term_columns.term_column`
+    """The candidates beyond the catalogue, by name (:func:`~hystdisc.models.term_columns.term_column`
     computes each); ``w_max`` is the largest ``|theta_dot|``, ``half`` the runs' median
     half-range."""
     names = ["i", *FIXED, "i*[theta_dot>0]"]

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from hystdisc import __version__
+from hystdisc.closing.open_library import ResidualTerms
 from hystdisc.models import TermModel, format_equation
 from hystdisc.pipeline.loop_record import effect_step, loop_tables, residual_summary
 from hystdisc.pipeline.state import State
@@ -88,6 +89,19 @@ def current_dependence(state: State) -> dict | None:
             "(every family's current-dependent parameters likewise)"
         ),
     }
+
+
+def library_section(lib: ResidualTerms) -> Record:
+    """The ``open_library`` section: what the library found, and its refit with the
+    refitted model recorded as ``model`` and ``system_model`` record the final one."""
+    table = lib.to_dict()
+    moved = lib.refit.fit if lib.refit is not None else None
+    if moved is not None:
+        term = None if moved.is_system else TermModelRecord.of(moved.term_part).to_dict()
+        entry = system_entry(moved)
+        table["refit"]["model"] = term
+        table["refit"]["system_model"] = None if entry is None else entry.to_dict()
+    return section("open_library", table)
 
 
 def section(key: str, table: dict) -> Record:
@@ -201,7 +215,7 @@ def build_results(state: State) -> Results:
         notes = [v.note for v in state.measured]
         data["delay_scan"] = DelayScanRecord.make(**state.delay_scan.to_dict(), notes=notes)
     if state.open_library is not None:  # the open library on a residual the catalogue left
-        data["open_library"] = section("open_library", state.open_library.to_dict())
+        data["open_library"] = library_section(state.open_library)
     if state.reselection is not None:  # the families compared again with the rig's effects
         data["reselection"] = section("reselection", state.reselection.to_dict())
     if state.reduction is not None:  # the selected family reduced to a smaller one + effects

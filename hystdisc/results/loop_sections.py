@@ -229,6 +229,9 @@ class LibraryRefitRecord(Record):
         Why, in words.
     equation : str
         ``F_extra = ...`` with the refitted coefficients.
+    model, system_model : dict or None
+        The refitted model, as ``model`` and ``system_model`` hold the final one
+        (:meth:`hystdisc.results.Results.simulation_model` with ``refitted=True``).
     extra : dict
         Keys this version does not know.
     """
@@ -251,6 +254,8 @@ class LibraryRefitRecord(Record):
     accepted: bool = False
     note: str = ""
     equation: str = ""
+    model: dict[str, Any] | None = None
+    system_model: dict[str, Any] | None = None
     extra: dict[str, Any] = field(default_factory=dict, repr=False)
 
 

@@ -34,12 +34,13 @@ True
 from __future__ import annotations
 
 import json
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import hystdisc.results.text as text
-from hystdisc.errors import HystdiscError
+from hystdisc.errors import HystdiscError, HystdiscWarning
 from hystdisc.models import TermModel
 from hystdisc.registry import experiment_names
 from hystdisc.results.record import Record, SchemaError, list_of, record_of, round_json, table_of
@@ -370,13 +371,16 @@ class Results(Record):
             ) from None
 
     # ----------------------------------------------------------------- models
-    def term_model(self, family: str | None = None) -> TermModel:
+    def term_model(self, family: str | None = None, refitted: bool = False) -> TermModel:
         """The fitted model in term form (final model with effects, or one family's fit).
 
         Parameters
         ----------
         family : str, optional
             A compared family; without it, the final model (selected family and effects).
+        refitted : bool
+            The final model as the open library's accepted terms refitted it
+            (``open_library.refit``; the terms themselves are not part of it).
 
         Returns
         -------
@@ -389,14 +393,28 @@ class Results(Record):
             When there is no such fit or its model is malformed.
         """
         try:
-            rec = self.model if family is None else self.families[family].term_model
+            rec = self._records(family, refitted)[0]
             if rec is None:
                 raise KeyError("term_model")
-            return rec.to_term_model()
+            return (
+                TermModelRecord.from_dict(rec).to_term_model() if refitted else rec.to_term_model()
+            )
         except (KeyError, TypeError, ValueError, AttributeError, OverflowError) as exc:
             raise _no_model(family, exc) from None
 
-    def simulation_model(self, family: str | None = None):
+    def _records(self, family: str | None, refitted: bool) -> tuple:
+        """The term-form and system records of the final model, a family's fit, or the
+        final model as the open library's accepted refit moved it."""
+        if refitted:
+            r = self.open_library.refit if self.open_library is not None else None
+            if r is None or not r.accepted:
+                raise KeyError("no accepted refit of the open library's terms")
+            return r.model, r.system_model
+        if family is None:
+            return self.model, self.system_model
+        return self.families[family].term_model, self.families[family].system
+
+    def simulation_model(self, family: str | None = None, refitted: bool = False):
         """The fitted model as the simulator takes it: the term form, or a system
         family's state-space model with its parameter values (final model with effects,
         or one family's fit).
@@ -405,6 +423,9 @@ class Results(Record):
         ----------
         family : str, optional
             A compared family; without it, the final model (selected family and effects).
+        refitted : bool
+            The final model as the open library's accepted terms refitted it (see
+            :meth:`term_model`).
 
         Returns
         -------
@@ -417,15 +438,17 @@ class Results(Record):
             When there is no such fit or its model is malformed.
         """
         try:
-            rec = self.system_model if family is None else self.families[family].system
-        except KeyError:
+            rec = self._records(family, refitted)[1]
+        except KeyError as exc:
+            if refitted:
+                raise _no_model(family, exc) from None
             rec = None  # term_model says what is missing
         if not rec:
-            return self.term_model(family)
+            return self.term_model(family, refitted)
         from hystdisc.registry import get_effect, get_family
 
         if "structural" in rec:  # the term part (``model``) around a structural effect
-            terms = self.term_model(family)
+            terms = self.term_model(family, refitted)
             try:
                 system = get_effect(rec["structural"]).system_model(terms, rec["experiment"])
                 values = {k: float(v) for k, v in rec["values"].items()}
@@ -471,6 +494,15 @@ class Results(Record):
         """
         from hystdisc.apply.control import to_control
 
+        refit = self.open_library.refit if self.open_library is not None else None
+        if family is None and refit is not None and refit.accepted:
+            warnings.warn(
+                f"the open library's accepted terms ({refit.equation}) are not in the "
+                "exported system, which is the catalogued model as they refitted it",
+                HystdiscWarning,
+                stacklevel=2,
+            )
+            return to_control(self.simulation_model(refitted=True), self.experiment, name)
         return to_control(self.simulation_model(family), self.experiment or "driven", name)
 
     @property

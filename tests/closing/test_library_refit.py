@@ -15,7 +15,7 @@ import pytest
 
 from hystdisc.closing.library_refit import TermsRefit, _softens, refit_terms
 from hystdisc.closing.open_library import _open_terms, regress_output_residual
-from hystdisc.closing.term_columns import term_column
+from hystdisc.models.term_columns import term_column
 from hystdisc.pipeline.close import refit_library
 from hystdisc.results.sections import OpenLibraryRecord
 from hystdisc.results.text import open_library_lines
@@ -108,24 +108,35 @@ def test_the_record_round_trips_without_a_refit():
     assert r.sentence().endswith("held out: not available: not accepted ()")
 
 
-def test_predict_says_that_accepted_terms_are_not_in_its_output(tmp_path, capsys):
-    """Until ``predict`` adds them, a results.json with accepted terms predicts with the
-    catalogued model alone, and says so in one line."""
+def test_predict_adds_accepted_terms_to_the_refitted_model(tmp_path, capsys):
+    """``hystdisc predict`` and ``Discovery.predict``: with accepted terms the final model
+    is the refitted one plus the terms, which predicts the step data at the noise (the
+    catalogued model alone misses by the step); ``--family`` is the family's own fit."""
     import json
 
     from hystdisc.cli import main
-    from hystdisc.data import write_csv
+    from hystdisc.data import load, write_csv
+    from hystdisc.pipeline.record import library_section
     from tests.closing.test_open_library import _driven, _with_step
 
     d = _fit("step", "tanh")
-    fit = d.family_fits_["tanh"]
+    lib = regress_output_residual(d.fit_data_, d.family_fits_["tanh"], seed=0)
+    lib.refit = refit_terms(d.fit_data_, d.family_fits_["tanh"], ["[theta_dot>0]"], NOISE)
     table = json.loads(d.results_.to_json())
-    table["open_library"] = {"candidates": 1, "refit": refit_terms(
-        d.fit_data_, fit, ["[theta_dot>0]"], floor=NOISE).to_dict()}  # fmt: skip
+    table["open_library"] = library_section(lib).to_dict()
     res = tmp_path / "results.json"
     res.write_text(json.dumps(table))
-    csv = write_csv(_with_step(_driven(3)), tmp_path / "step.csv")
-    assert main(["predict", str(res), str(csv), "-o", str(tmp_path / "p.csv"), "--quiet"]) == 0
-    err = capsys.readouterr().err
-    assert f"{res}: the open library's accepted terms (F_extra = " in err
-    assert "are not in this prediction, which is the catalogued model's alone" in err
+    csv = write_csv(_with_step(_driven(3, family="tanh")), tmp_path / "step.csv")
+    rms = {}
+    for extra in ([], ["--family", "tanh"]):
+        out = tmp_path / f"p{len(extra)}.csv"
+        assert main(["predict", str(res), str(csv), "-o", str(out), *extra]) == 0
+        p = np.genfromtxt(out, delimiter=",", names=True)
+        rms[len(extra)] = float(np.sqrt(np.mean((p["torque"] - p["torque_pred"]) ** 2)))
+    text = capsys.readouterr().out
+    assert text.count("with the open library's accepted terms: F_extra = ") == 1
+    assert rms[0] == pytest.approx(NOISE, rel=0.1) and rms[2] > 2 * NOISE
+    d.open_library_ = lib  # as the pipeline leaves it when the loop ran
+    pred = d.predict(load(csv))
+    e = np.concatenate([r.predicted - r.measured for r in pred])
+    assert float(np.sqrt(np.mean(e**2))) == pytest.approx(rms[0], rel=1e-6)

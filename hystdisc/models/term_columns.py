@@ -23,8 +23,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-from hystdisc.models import TORQUE_TERMS, TermModel
 from hystdisc.models.backlash import play
+from hystdisc.models.terms import TORQUE_TERMS, TermModel
 
 Column = Callable[[np.ndarray, np.ndarray, float, np.ndarray], np.ndarray]
 
