@@ -140,3 +140,10 @@ def test_predict_adds_accepted_terms_to_the_refitted_model(tmp_path, capsys):
     pred = d.predict(load(csv))
     e = np.concatenate([r.predicted - r.measured for r in pred])
     assert float(np.sqrt(np.mean(e**2))) == pytest.approx(rms[0], rel=1e-6)
+    # python-control: the refitted model, and a warning that the terms are not in it
+    from hystdisc.errors import HystdiscWarning
+    from hystdisc.results import Results
+
+    with pytest.warns(HystdiscWarning, match=r"accepted terms \(F_extra = .*\) are not in the exp"):
+        sys = Results.load(res).to_control()
+    assert sys.output_labels == ["torque"]
