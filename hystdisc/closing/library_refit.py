@@ -77,6 +77,9 @@ class TermsRefit:
         The verdict (see the module docstring).
     note : str
         Why, in words.
+    dropped : list of str
+        Terms of the library's set left out: its spring terms, when with them the spring
+        softened to a negative stiffness (:func:`refit_admissible`).
     fit : OEFit or None
         The model's fit moved to the refitted parameters (its residual, RMS and intervals
         are the catalogued model's at its own optimum; not in ``results.json``: the
@@ -106,6 +109,7 @@ class TermsRefit:
     admissible: bool = False
     accepted: bool = False
     note: str = ""
+    dropped: list[str] = field(default_factory=list)
     fit: OEFit | None = field(default=None, repr=False, compare=False)
 
     @property
@@ -191,13 +195,24 @@ def _absorbs(data, fit: OEFit, resid: np.ndarray, offsets: np.ndarray) -> bool:
     return True
 
 
+def in_position(name: str) -> bool:
+    """The term is a force of the position alone (a spring: ``theta``, ``theta^3``,
+    ``theta*[theta>0]``).
+
+    Examples
+    --------
+    >>> in_position("theta^3"), in_position("i*theta_dot"), in_position("play(theta,0.1)-theta")
+    (True, False, False)
+    """
+    return "theta" in name and "theta_dot" not in name and "play" not in name
+
+
 def _softens(data, names: Sequence[str], coefs: np.ndarray) -> str | None:
     """Where the terms in the position alone (``theta``, ``theta^3``, ...) make a spring of
     negative stiffness within twice the training stroke, at any training current, in
     words; None when they stiffen (or hold no such term). The model's own spring is
     admissible on its own (it is refitted beside them)."""
-    own = [(n, c) for n, c in zip(names, coefs, strict=True)
-           if "theta" in n and "theta_dot" not in n and "play" not in n]  # fmt: skip
+    own = [(n, c) for n, c in zip(names, coefs, strict=True) if in_position(n)]
     if not own:
         return None
     reach = 2.0 * max(float(np.max(np.abs(th))) for th in data.theta)
@@ -357,3 +372,18 @@ def _verdict(r: TermsRefit, violation: str | None, absorbs: bool) -> tuple[bool,
         f"they remove {r.excess_share:.0%} of the excess over the floor and predict "
         f"{r.lower} of {folds} held-out conditions better"
     )
+
+
+def refit_admissible(data, fit: OEFit, names: Sequence[str], floor: float, **kw) -> TermsRefit:
+    """:func:`refit_terms`, and when the terms' spring softens to a negative stiffness
+    (an inadmissible spring: no such damper exists), once more without the terms in the
+    position alone (:func:`in_position`); the second refit is the verdict, its
+    ``dropped`` says which terms were left out and its note why."""
+    first = refit_terms(data, fit, names, floor, **kw)
+    rest = [n for n in names if not in_position(n)]
+    if first.accepted or "negative stiffness" not in first.note or not rest:
+        return first
+    out = refit_terms(data, fit, rest, floor, **kw)
+    out.dropped = [n for n in names if in_position(n)]
+    out.note += f"; without {', '.join(out.dropped)} ({first.note})"
+    return out

@@ -15,7 +15,7 @@ from collections.abc import Callable
 
 from hystdisc.closing import LoopResult, close_loop
 from hystdisc.closing.again import compare_again
-from hystdisc.closing.library_refit import TermsRefit, refit_terms
+from hystdisc.closing.library_refit import TermsRefit, refit_admissible
 from hystdisc.closing.open_library import (
     ResidualTerms,
     regress_output_residual,
@@ -135,7 +135,7 @@ def open_library(state: State, fit: OEFit) -> ResidualTerms | None:
 
 def refit_library(state: State, lib: ResidualTerms, fit: OEFit) -> TermsRefit | None:
     """The open library's stable terms refitted into ``fit``'s model by output error and
-    judged on held-out conditions (:func:`~hystdisc.closing.library_refit.refit_terms`),
+    judged on held-out conditions (:func:`~hystdisc.closing.library_refit.refit_admissible`),
     when the linearized screen (:attr:`ResidualTerms.heldout`) says they predict the
     held-out conditions better; None otherwise (a test whose output is not the force has
     no such screen)."""
@@ -143,7 +143,7 @@ def refit_library(state: State, lib: ResidualTerms, fit: OEFit) -> TermsRefit | 
     if not lib.terms or h is None or not h.after < h.before:
         return None
     state.say("closing the loop: the open library's terms refitted into the model, held out")
-    return refit_terms(
+    return refit_admissible(
         state.fd, fit, [t.name for t in lib.terms], floor=state.noise_std,
         max_nfev=state.options.max_nfev, envelope=state.envelope,
     )  # fmt: skip
