@@ -229,6 +229,8 @@ class LibraryRefitRecord(Record):
         Why, in words.
     equation : str
         ``F_extra = ...`` with the refitted coefficients.
+    dropped : list of str
+        Terms of the library's set left out (its spring, which softened).
     model, system_model : dict or None
         The refitted model, as ``model`` and ``system_model`` hold the final one
         (:meth:`hystdisc.results.Results.simulation_model` with ``refitted=True``).
@@ -254,6 +256,7 @@ class LibraryRefitRecord(Record):
     accepted: bool = False
     note: str = ""
     equation: str = ""
+    dropped: list[str] = field(default_factory=list)
     model: dict[str, Any] | None = None
     system_model: dict[str, Any] | None = None
     extra: dict[str, Any] = field(default_factory=dict, repr=False)

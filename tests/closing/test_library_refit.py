@@ -147,3 +147,32 @@ def test_predict_adds_accepted_terms_to_the_refitted_model(tmp_path, capsys):
     with pytest.warns(HystdiscWarning, match=r"accepted terms \(F_extra = .*\) are not in the exp"):
         sys = Results.load(res).to_control()
     assert sys.output_labels == ["torque"]
+
+
+def test_a_softening_spring_is_dropped_and_the_rest_refitted():
+    """The step with a small softening spring added (``-1.25 theta^3``: 0.01 at the
+    stroke, negative stiffness everywhere but at 0): with ``theta^3`` the terms' spring is
+    inadmissible; refitted without it, the step is accepted on its own."""
+    import warnings
+
+    from hystdisc import Discovery
+    from hystdisc.closing.library_refit import refit_admissible
+    from hystdisc.data import Dataset, Run
+    from tests.closing.test_open_library import _driven, _with_step
+
+    step = _with_step(_driven(3, family="tanh"))
+    runs = [Run(r.name, r.t, r.theta, r.current, torque=r.torque - 1.25 * r.theta**3)
+            for r in step.runs]  # fmt: skip
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        d = Discovery(model="tanh", close_loop=False, heldout=False).fit(
+            Dataset(runs, "driven", "soft")
+        )
+    names = ["[theta_dot>0]", "theta^3"]
+    r = refit_admissible(d.fit_data_, d.family_fits_["tanh"], names, floor=NOISE)
+    assert r.terms == ["[theta_dot>0]"] and r.dropped == ["theta^3"]
+    assert r.accepted and r.coefficients["[theta_dot>0]"] == pytest.approx(STEP, rel=0.05)
+    assert r.note.endswith(
+        "; without theta^3 (the model with them is not physical: the terms' spring has a "
+        "negative stiffness at -0.4 (0 A))"
+    )
