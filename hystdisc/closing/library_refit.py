@@ -156,7 +156,9 @@ def columns(data, names: Sequence[str], runs: Sequence[int] | None = None) -> np
 
 
 def _projector(G: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
-    """``x -> x - P_G x``: what is left of ``x`` (vector or matrix) beside ``G``'s span."""
+    """``x -> x - P_G x``: what is left of ``x`` (vector or matrix) beside the span of
+    ``G``'s columns that are not zero on these rows."""
+    G = G[:, np.any(G != 0.0, axis=0)]
     q, _ = np.linalg.qr(G / np.sqrt(np.mean(G**2, axis=0)))
     return lambda x: x - q @ (q.T @ x)
 
@@ -180,11 +182,12 @@ def _fit(fitter: OutputErrorFitter, v0: np.ndarray, G: np.ndarray | None, iters:
         r = fitter.residuals(v)
     if G is None:
         return v, r, np.zeros(0)
+    # a term that is zero on these rows (a bias of a level a fold leaves out) gets 0
     c = -np.linalg.lstsq(G, r, rcond=None)[0]
     return v, r + G @ c, c
 
 
-def _absorbs(data, fit: OEFit, resid: np.ndarray, offsets: np.ndarray) -> bool:
+def _absorbs(data, resid: np.ndarray, offsets: np.ndarray) -> bool:
     """The predicted force (measured plus the residual) times the velocity, summed over
     each training run, is positive: the model absorbs energy in every run."""
     for k in range(data.n_runs):
@@ -291,7 +294,7 @@ def refit_terms(
     if envelope is None:
         envelope = Envelope.from_runs(data.names, data.t, data.theta, data.theta_dot, data.currents)
     adm = check_admissible(moved.model if moved.is_system else moved.term_part, envelope)
-    absorbs = _absorbs(data, fit, resid, fitter.row_offsets)
+    absorbs = _absorbs(data, resid, fitter.row_offsets)
     soft = _softens(data, names, c)
     out = TermsRefit(
         terms=names,
@@ -381,7 +384,8 @@ def refit_admissible(data, fit: OEFit, names: Sequence[str], floor: float, **kw)
     ``dropped`` says which terms were left out and its note why."""
     first = refit_terms(data, fit, names, floor, **kw)
     rest = [n for n in names if not in_position(n)]
-    if first.accepted or "negative stiffness" not in first.note or not rest:
+    coefs = np.array([first.coefficients[n] for n in first.terms])
+    if first.accepted or not rest or _softens(data, first.terms, coefs) is None:
         return first
     out = refit_terms(data, fit, rest, floor, **kw)
     out.dropped = [n for n in names if in_position(n)]
