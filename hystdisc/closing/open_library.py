@@ -131,7 +131,8 @@ class ResidualTerms:
         judged, a test whose output is not the force or a single condition).
     refit : ~hystdisc.closing.library_refit.TermsRefit or None
         The terms refitted into the model by output error and judged on held-out
-        conditions (:func:`~hystdisc.closing.library_refit.refit_terms`; None: not refitted).
+        conditions (:func:`~hystdisc.closing.library_refit.refit_admissible`; None: not
+        refitted).
     """
 
     terms: list[DiscoveredTerm] = field(default_factory=list)
