@@ -237,6 +237,7 @@ def refit_terms(
     floor: float,
     max_nfev: int = 60,
     envelope=None,
+    before: tuple[float | None, list[float]] | None = None,
 ) -> TermsRefit:
     """Refit the model of ``fit`` with the terms ``names`` by output error and judge them
     on held-out conditions (see the module docstring).
@@ -255,6 +256,9 @@ def refit_terms(
         Iterations of each fit (the joint one and each fold's, with and without the terms).
     envelope : Envelope, optional
         The training envelope of the admissibility check.
+    before : tuple, optional
+        The held-out errors of ``fit``'s model without terms (pooled, per condition), when
+        an earlier refit of the same fit computed them.
 
     Returns
     -------
@@ -311,46 +315,42 @@ def refit_terms(
         admissible=bool(adm.ok and absorbs and soft is None),
         fit=moved,
     )
-    out.heldout_before, out.fold_before, out.heldout_after, out.fold_after = _heldout(
-        data, par, v_fit, v, names, max_nfev
-    )
+    # the model without the terms is held out once for every term set of one fit
+    without = before if before is not None else _heldout(data, par, v_fit, None, max_nfev)
+    with_terms = _heldout(data, par, v, names, max_nfev)
+    if without[0] is not None and with_terms[0] is not None:  # else: a fold diverged
+        out.heldout_before, out.fold_before = without
+        out.heldout_after, out.fold_after = with_terms
     violation = adm.violations[0] if not adm.ok else soft
     out.accepted, out.note = _verdict(out, violation, absorbs)
     return out
 
 
-def _heldout(data, par, v_without, v_with, names, iters):
-    """Each condition left out: both models refitted on the others from their joint
-    optima, the condition predicted. Returns the pooled RMS and each fold's, without and
-    with the terms (None pooled when a prediction diverged)."""
+def _heldout(data, par, v0, names, iters) -> tuple[float | None, list[float]]:
+    """Each condition left out: the model (with the terms ``names``, or without any for
+    None) refitted on the others from ``v0``, its joint optimum, and the condition
+    predicted. Returns the pooled RMS (None when a prediction diverged) and each fold's."""
     npar = len(par.names)
-    nnu = (v_without.size - npar) // data.n_runs
-    sq = [0.0, 0.0]
-    folds: list[list[float]] = [[], []]
-    count = 0
+    nu = v0[npar:].reshape(data.n_runs, (v0.size - npar) // data.n_runs)
+    sq, folds, count = 0.0, [], 0
     for fold in data.folds():
         train = [k for k in range(data.n_runs) if k not in fold]
         sub = OutputErrorFitter(data.subset(train), par, max_nfev=iters)
         test = OutputErrorFitter(data.subset(fold), par, max_nfev=iters)
-        G_train, G_test = columns(data, names, train), columns(data, names, fold)
-        for j, (v0, G) in enumerate(((v_without, None), (v_with, G_train))):
-            nu = v0[npar:].reshape(data.n_runs, nnu)
-            start = np.concatenate([v0[:npar], nu[train].ravel()])
-            try:
-                vf, _, c = _fit(sub, start, G, iters)
-            except (HystdiscError, np.linalg.LinAlgError, ValueError):
-                return None, [], None, []
-            with np.errstate(all="ignore"):
-                e = test.residuals(np.concatenate([vf[:npar], nu[fold].ravel()]))
-            if G is not None:
-                e = e + G_test @ c
-            if not np.all(np.isfinite(e)):
-                return None, [], None, []
-            sq[j] += float(e @ e)
-            folds[j].append(float(np.sqrt(np.mean(e**2))))
-        count += G_test.shape[0]
-    pooled = [float(np.sqrt(s / max(count, 1))) for s in sq]
-    return pooled[0], folds[0], pooled[1], folds[1]
+        G = None if names is None else columns(data, names, train)
+        try:
+            vf, _, c = _fit(sub, np.concatenate([v0[:npar], nu[train].ravel()]), G, iters)
+        except (HystdiscError, np.linalg.LinAlgError, ValueError):
+            return None, []
+        with np.errstate(all="ignore"):
+            e = test.residuals(np.concatenate([vf[:npar], nu[fold].ravel()]))
+        if G is not None:
+            e = e + columns(data, names, fold) @ c
+        if not np.all(np.isfinite(e)):
+            return None, []
+        sq, count = sq + float(e @ e), count + e.size
+        folds.append(float(np.sqrt(np.mean(e**2))))
+    return float(np.sqrt(sq / max(count, 1))), folds
 
 
 def _verdict(r: TermsRefit, violation: str | None, absorbs: bool) -> tuple[bool, str]:
@@ -387,7 +387,9 @@ def refit_admissible(data, fit: OEFit, names: Sequence[str], floor: float, **kw)
     coefs = np.array([first.coefficients[n] for n in first.terms])
     if first.accepted or not rest or _softens(data, first.terms, coefs) is None:
         return first
-    out = refit_terms(data, fit, rest, floor, **kw)
+    held = first.heldout_before  # the model without terms, held out (None: not computed)
+    before = None if held is None else (held, first.fold_before)
+    out = refit_terms(data, fit, rest, floor, before=before, **kw)
     out.dropped = [n for n in names if in_position(n)]
     out.note += f"; without {', '.join(out.dropped)} ({first.note})"
     return out
