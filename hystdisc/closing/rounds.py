@@ -50,8 +50,9 @@ MIN_FOLDS_ALL = 4
 #: ``restart(effect, values, par) -> start or None``: a full start of the model ``par``
 #: (the current one) plus ``effect`` that does not rely on the current optimum, given
 #: ``values`` of a start or refit of that structure (the effect's own among them): the
-#: offset's (:func:`~hystdisc.closing.shift.shift_restart`) fits the family again on the
-#: angle shifted by ``values["theta_off"]``; None for the other effects.
+#: offset's and the backlash's (:func:`~hystdisc.closing.motion_restart.motion_restart`)
+#: fit the family again on the angle shifted by ``values["theta_off"]``, or on the motion
+#: seen through the play ``values["r_b"]``; None for the other effects.
 Restart = Callable[[str, dict, "FamilyParametrization"], "dict | None"]
 
 
@@ -238,8 +239,12 @@ class Round:
 
         A refit that passes every test but the held-out one may sit in a basin that fits
         the data it saw only (an offset refit at 1.01 times the noise predicted the
-        held-out runs at 3 times): it is refitted once more from :attr:`restart`'s start
-        (once per effect and round) and the refit with the lower BIC is kept.
+        held-out runs at 3 times), and one the data want (better in BIC, significant)
+        that is not physical may sit in a basin the missing effect bent the model into (a
+        Spencer damper fitted without its play, then refitted with it, diverges in a slow
+        cycle): either is refitted once more from :attr:`restart`'s start (once per
+        effect and round). The restarted refit is kept when its BIC is lower, or when it
+        passes every test and the first was not physical.
         ``restarted`` marks ``start`` as such a start already (see :meth:`screen`).
         """
         cur = self.current
@@ -263,8 +268,8 @@ class Round:
         new, verdict = self.judge(s, new, structural)
         if restarted:
             verdict.restarted = True
-        fits_only = verdict.improves and verdict.significant and verdict.admissible
-        if fits_only and not verdict.predicts:
+        wanted = verdict.improves and verdict.significant
+        if wanted and not (verdict.admissible and verdict.predicts):
             again = self._restart_start(s.name, dict(new.params), cur.par)
             if again is not None:
                 self.say(f"closing the loop: refit with {s.name} from the restarted family")
@@ -274,7 +279,8 @@ class Round:
                         heldout=False
                     )
                 new2, verdict2 = self.judge(s, new2)
-                if verdict2.ok and new2.bic < new.bic:
+                physical = verdict2.acceptable and not verdict.admissible
+                if verdict2.ok and (new2.bic < new.bic or physical):
                     new, verdict = new2, verdict2
                     verdict.restarted = True
         old = self.results.get(s.name)

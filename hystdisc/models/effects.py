@@ -118,7 +118,7 @@ class Effect:
     shift_param : str
         The parameter that shifts the measured angle (the spring's neutral angle): the
         model plus the effect is restarted from the family fitted on the shifted data
-        (:mod:`hystdisc.closing.shift`); empty: none.
+        (:mod:`hystdisc.closing.motion_restart`); empty: none.
     delay_param : str
         The parameter that delays the recorded output behind the motion or input (s),
         written into the term model's ``delay`` (:meth:`apply`) and into a state-space

@@ -16,6 +16,7 @@ from collections.abc import Callable
 from hystdisc.closing import LoopResult, close_loop
 from hystdisc.closing.again import compare_again
 from hystdisc.closing.library_refit import TermsRefit, refit_admissible
+from hystdisc.closing.motion_restart import motion_restart
 from hystdisc.closing.open_library import (
     ResidualTerms,
     regress_output_residual,
@@ -23,7 +24,6 @@ from hystdisc.closing.open_library import (
 )
 from hystdisc.closing.refit import has_spring
 from hystdisc.closing.reselect import Context
-from hystdisc.closing.shift import shift_restart
 from hystdisc.discovery.delay import MIN_DBIC
 from hystdisc.errors import HystdiscWarning
 from hystdisc.fitting import OEFit
@@ -153,13 +153,17 @@ def close(state: State, fit_family: Callable) -> None:
     """The loop, the comparison again, equal fits, the final model and its admissibility.
 
     ``fit_family(dataset, family)`` fits one family with all its starts and no loop (the
-    restart of a shift effect: :func:`~hystdisc.closing.shift.shift_restart`).
+    restart of a shift or a play effect:
+    :func:`~hystdisc.closing.motion_restart.motion_restart`).
     """
     opts, fd, failures = state.options, state.fd, state.failures
     selected = state.family_fits[state.family]
     restart = None
     if opts.close_loop:
-        restart = shift_restart(state.dataset, fit_family, state.say, min_shift=fd.noise_std)
+        motion = fd.motion_noise.std if fd.motion_noise is not None else 0.0
+        restart = motion_restart(
+            state.dataset, fit_family, state.say, min_shift=fd.noise_std, min_play=motion
+        )
         state.loop = _loop(state, selected, restart)
     state.bics = {n: f.bic for n, f in state.family_fits.items()}
     # the staged laws belong to the selected family alone: no other family replaces it

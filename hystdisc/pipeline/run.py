@@ -60,8 +60,8 @@ def stderr_printer() -> Callable[[str], None]:
 
 def fit_family(dataset: Dataset, options: Options, family: str) -> OEFit | None:
     """``family`` fitted on ``dataset`` with ``options`` and all its starts, without the
-    loop or the staged fit (the restart of a shift effect:
-    :func:`~hystdisc.closing.shift.shift_restart`); None when it fails."""
+    loop or the staged fit (the restart of a shift or a play effect:
+    :func:`~hystdisc.closing.motion_restart.motion_restart`); None when it fails."""
     opts = options.replace(model=family, close_loop=False, staged=False, ensemble=False)
     try:
         with warnings.catch_warnings():

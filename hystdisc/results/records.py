@@ -352,7 +352,7 @@ class EffectTrial(Record):
     restarted : bool
         The refit had a start from the family fitted again on the shifted angle (the
         offset's, from its stage-1 value or from a refit that fitted better but did not
-        predict: :mod:`hystdisc.closing.shift`), and is the better for it (absent unless
+        predict: :mod:`hystdisc.closing.motion_restart`), and is the better for it (absent unless
         so).
     extra : dict
         Keys this version does not know (kept on a round trip).

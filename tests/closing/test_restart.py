@@ -17,7 +17,7 @@ import numpy as np
 
 from hystdisc import Discovery
 from hystdisc.cli import main
-from hystdisc.closing.shift import shifted
+from hystdisc.closing.motion_restart import shifted
 from hystdisc.data import load
 from hystdisc.models import Model, get_family
 from hystdisc.simulation.synth import generate
@@ -85,7 +85,7 @@ def test_an_offset_the_base_fit_absorbed_is_refitted_from_its_stage1_value():
 def test_the_restart_fits_a_family_once_per_shift_and_only_for_a_shift_above_the_floor():
     from types import SimpleNamespace as NS
 
-    from hystdisc.closing.shift import shift_restart
+    from hystdisc.closing.motion_restart import motion_restart
 
     data = generate(Model("dahl"), currents=(0, 1), duration=0.5, noise=0.0, seed=1)
     calls = []
@@ -94,7 +94,7 @@ def test_the_restart_fits_a_family_once_per_shift_and_only_for_a_shift_above_the
         calls.append((family, round(float(data.runs[0].theta[0] - ds.runs[0].theta[0]), 6)))
         return NS(params={"k_x": 1.0, "k_s": 150.0}, par=NS(norm="z_sat"))
 
-    restart = shift_restart(data, fit_family, min_shift=1e-3)
+    restart = motion_restart(data, fit_family, min_shift=1e-3)
     par = NS(family=NS(name="dahl"), norm="z_sat")
     values = {"k_x": 0.5, "k_s": 140.0, "theta_off": 0.02, "J": 1.0}
     assert restart("cubic_stiffness", {"k_3": 5.0}, par) is None  # not a shift
@@ -105,11 +105,11 @@ def test_the_restart_fits_a_family_once_per_shift_and_only_for_a_shift_above_the
     assert start == {"k_x": 1.0, "k_s": 150.0, "theta_off": 0.02, "J": 1.0}
     assert restart("offset", values, par) == start and calls == [("dahl", 0.02)]  # once
     # a fit in torque units (alpha_1 = 1) does not read in a model in z_sat units
-    alpha1 = shift_restart(data, lambda ds, f: NS(params={"k_s": 1.0}, par=NS(norm="alpha_1")))
+    alpha1 = motion_restart(data, lambda ds, f: NS(params={"k_s": 1.0}, par=NS(norm="alpha_1")))
     assert alpha1("offset", values, par) is None
     # a fit in z_sat units is rescaled for a model in torque units
     bw = {"alpha_1": 2.0, "alpha_2": 1.0, "delta": 3.0, "beta": 2.0, "gamma": 1.0, "n": 1.0}
-    zsat = shift_restart(data, lambda ds, f: NS(params={**bw, "k_s": 150.0}, par=NS(norm="z_sat")))
+    zsat = motion_restart(data, lambda ds, f: NS(params={**bw, "k_s": 150.0}, par=NS(norm="z_sat")))
     bouc_wen = NS(family=get_family("bouc-wen"), norm="alpha_1")
     start = zsat("offset", {"theta_off": 0.02}, bouc_wen)
     assert start["alpha_1"] == 1.0 and start["delta"] == 6.0 and start["alpha_2"] == 0.5
