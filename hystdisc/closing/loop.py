@@ -334,6 +334,8 @@ def augment(
                     continue
                 if s.name in forced_values and s.starts is None:
                     rnd.attempt(s, start=_start_at(current, s.name, forced_values[s.name]))
+                    if forced_values[s.name]:  # a value the library read off the residual
+                        rnd.restart_from(s, forced_values[s.name])
                     continue
                 done = rnd.best() if rnd.done() else None
                 if (

@@ -284,8 +284,28 @@ class Round:
                     new, verdict = new2, verdict2
                     verdict.restarted = True
         old = self.results.get(s.name)
-        if old is None or (verdict.ok and (old[1].bic_after is None or new.bic < old[0].bic)):
+        better = old is None or old[1].bic_after is None or new.bic < old[0].bic
+        if old is None or (verdict.ok and (better or verdict.acceptable and not old[1].acceptable)):
             self.results[s.name] = (new, verdict)
+
+    def restart_from(self, s: EffectScore, values: dict) -> None:
+        """Refit ``s``'s effect once more from :attr:`restart`'s start at ``values`` (the
+        effect's own, read off the residual: the open library's play width), unless its
+        refit this round is acceptable or was restarted already.
+
+        A base fit bent by a missing play can leave the local refit from the library's
+        width no way to it (a Spencer damper with a 0.4 mm play: the base fit ended at
+        ``n = 10``, and the refit from there took the width to 0); the family fitted again
+        on the motion seen through that width does not depend on that fit.
+        """
+        done = self.results.get(s.name)
+        if done is not None and done[1].acceptable:
+            return
+        again = self._restart_start(s.name, {**dict(self.current.params), **values},
+                                    self.current.par)  # fmt: skip
+        if again is not None:
+            self.say(f"closing the loop: refit with {s.name} from the restarted family")
+            self.attempt(s, start=again, restarted=True)
 
     def judge(
         self, s: EffectScore, new: OEFit, structural: StructuralRefit | None = None
