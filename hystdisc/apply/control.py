@@ -28,6 +28,11 @@ call (cached per current value). What the export leaves out, and why:
   and put the wheel in the loop. A driven fit's compliant mount is exported (it sits
   between the measured motion and the damper).
 
+The open library's accepted terms (``extra``, :attr:`hystdisc.results.Results.open_library`)
+are added to the output from their names; a play's term through a state of its own
+(``play_<k>``: the damper end's position behind the play of the k-th width, 0 at t = 0
+as the motion is).
+
 Examples
 --------
 >>> import numpy as np
@@ -52,6 +57,7 @@ from hystdisc.data import Dataset
 from hystdisc.errors import HystdiscError
 from hystdisc.models import Model, TermModel
 from hystdisc.models.system import FamilySystem, StateSpaceModel, TermSystem
+from hystdisc.models.term_columns import play_term, term_column
 from hystdisc.models.wheel import RIG_TERMS
 from hystdisc.registry import get_experiment
 
@@ -65,6 +71,12 @@ OUTPUT = "torque"
 #: export was 1.5e-8 of the peak from a 1e-12 integration with ``atol`` 1e-13 and 2.8e-9
 #: with 1e-14 (``rtol`` 1e-11 both).
 SOLVE_IVP_KWARGS = {"rtol": 1e-11, "atol": 1e-14}
+#: The share of a play's width over which the damper's end takes up the motion's velocity
+#: in the exported system (:func:`to_control`'s ``extra``).
+PLAY_RAMP = 1e-3
+#: Tolerances for a system with a play term (``extra``): its ramp is stiff, which an
+#: implicit method takes in its stride and an explicit one at 1e-11 crawls through.
+PLAY_SOLVE_IVP_KWARGS = {"method": "LSODA", "rtol": 1e-8, "atol": 1e-10}
 #: Currents whose packed parameters are kept (a switching controller uses two or three).
 CACHE_SIZE = 64
 
@@ -155,10 +167,56 @@ class _Packed:
         return p
 
 
+class _Extra:
+    """The open library's terms on one sample: a play's from the state of its width (the
+    damper end's position behind it), the others from their names
+    (:func:`~hystdisc.models.term_columns.term_column`)."""
+
+    def __init__(self, terms: Mapping[str, float]) -> None:
+        self.static: dict[str, float] = {}
+        #: (coefficient, index of the width, the lost velocity (else the gap), times i)
+        self.plays: list[tuple[float, int, bool, bool]] = []
+        self.widths: list[float] = []
+        for name, c in terms.items():
+            found = play_term(name)
+            if found is None:
+                term_column(name, np.zeros(1), np.zeros(1), 0.0, np.zeros(1))  # known?
+                self.static[name] = float(c)
+                continue
+            r, lost, by_i = found
+            if r not in self.widths:
+                self.widths.append(r)
+            self.plays.append((float(c), self.widths.index(r), lost, by_i))
+
+    def rates(self, y: np.ndarray, theta: float, theta_dot: float) -> np.ndarray:
+        """The velocity of the damper's end behind each play: the motion's while the gap
+        is closed and pushing, 0 while it is open, and in between over the last
+        :data:`PLAY_RAMP` of the width (a switch exactly at the width makes an ODE
+        solver chatter across it; the ramp holds the gap within that share of it)."""
+        out = np.zeros(len(self.widths))
+        for k, r in enumerate(self.widths):
+            push = (theta - y[k]) * np.sign(theta_dot)  # how far the gap is closed
+            share = (push - (1.0 - PLAY_RAMP) * r) / (PLAY_RAMP * r)
+            out[k] = theta_dot * min(max(share, 0.0), 1.0)
+        return out
+
+    def force(self, y: np.ndarray, u: np.ndarray, t: float) -> float:
+        """The terms' sum at states ``y`` (the plays') and inputs ``u``."""
+        theta, theta_dot, i = (float(v) for v in u[:3])
+        th, w, tt = np.array([theta]), np.array([theta_dot]), np.array([t])
+        f = sum(c * float(term_column(n, th, w, i, tt)[0]) for n, c in self.static.items())
+        rates = self.rates(y, theta, theta_dot)
+        for c, k, lost, by_i in self.plays:
+            value = rates[k] - theta_dot if lost else y[k] - theta
+            f += c * value * (i if by_i else 1.0)
+        return float(f)
+
+
 def to_control(
     model: TermModel | tuple[StateSpaceModel, Mapping[str, float]] | Model,
     experiment: str = "driven",
     name: str = "damper",
+    extra: Mapping[str, float] | None = None,
 ) -> Any:
     """The damper of a fitted model as a ``control.NonlinearIOSystem``.
 
@@ -172,6 +230,11 @@ def to_control(
         The experiment the model was fitted on (see :func:`damper_model`).
     name : str
         The system's name in an interconnection.
+    extra : dict of str to float, optional
+        Terms added to the output, by name and coefficient (the open library's accepted
+        terms: :class:`~hystdisc.results.loop_sections.LibraryRefitRecord`
+        ``coefficients``); a play's adds a state ``play_<k>`` (simulate it with
+        ``solve_ivp_kwargs=PLAY_SOLVE_IVP_KWARGS``).
 
     Returns
     -------
@@ -207,21 +270,29 @@ def to_control(
     system, values = damper_model(model, experiment)
     packed = _Packed(system, values)
     rate, observe, n = system.rate, system.observe, len(system.states)
+    try:
+        terms = _Extra(extra or {})
+    except ValueError as err:
+        raise HystdiscError(f"{err}; fix: pass the open library's own term names") from None
+    labels = [*system.states, *(f"play_{k}" for k in range(len(terms.widths)))]
 
     def updfcn(t, x, u, params):
-        dx = np.empty(n)
-        rate(np.ascontiguousarray(x, dtype=float), np.array(u[:2], dtype=float), packed(u[2]), dx)
+        dx = np.empty(len(labels))
+        motion = np.array(u[:2], dtype=float)
+        if n:
+            rate(np.ascontiguousarray(x[:n], dtype=float), motion, packed(u[2]), dx[:n])
+        dx[n:] = terms.rates(x[n:], motion[0], motion[1])
         return dx
 
     def outfcn(t, x, u, params):
         y = observe(
-            np.ascontiguousarray(x, dtype=float), np.array(u[:2], dtype=float), packed(u[2])
+            np.ascontiguousarray(x[:n], dtype=float), np.array(u[:2], dtype=float), packed(u[2])
         )
-        return np.array([y])
+        return np.array([y + terms.force(x[n:], u, t)])
 
-    states = {"states": list(system.states)} if n else {}  # none: a static damper (tanh)
+    states = {"states": labels} if labels else {}  # none: a static damper (tanh)
     return ct.nlsys(
-        updfcn if n else None,
+        updfcn if labels else None,
         outfcn,
         inputs=list(INPUTS),
         outputs=[OUTPUT],

@@ -64,12 +64,15 @@ def _lost(r: float) -> Column:
     )
 
 
+#: A play's gap to the motion, and the velocity it loses (the width is the constant).
+GAP = re.compile(r"play\(theta,(.+)\)-theta")
+LOST = re.compile(r"d/dt\[play\(theta,(.+)\)-theta\]")
 #: Names with one constant: ``pattern -> constructor(constant)``.
 PATTERNS: tuple[tuple[re.Pattern, Callable[[float], Column]], ...] = (
     (re.compile(r"bias\[i=(.+) A\]"), _bias),
     (re.compile(r"tanh\(theta_dot/(.+)\)"), _tanh),
-    (re.compile(r"play\(theta,(.+)\)-theta"), _gap),
-    (re.compile(r"d/dt\[play\(theta,(.+)\)-theta\]"), _lost),
+    (GAP, _gap),
+    (LOST, _lost),
 )
 
 
@@ -86,6 +89,25 @@ def tanh_name(v0: float) -> str:
 def play_names(r: float) -> tuple[str, str]:
     """The names of a play of width ``r``: its gap to the motion and the velocity it loses."""
     return f"play(theta,{r:g})-theta", f"d/dt[play(theta,{r:g})-theta]"
+
+
+def play_term(name: str) -> tuple[float, bool, bool] | None:
+    """A play term's width, whether it is the velocity the play loses (``d/dt[...]``)
+    rather than its gap, and whether it is scaled by the current (``i*``); None for a
+    term without a play.
+
+    Examples
+    --------
+    >>> play_term("i*d/dt[play(theta,0.0005)-theta]"), play_term("theta^2")
+    ((0.0005, True, True), None)
+    """
+    by_i = name.startswith("i*")
+    base = name[2:] if by_i else name
+    for lost, pattern in ((False, GAP), (True, LOST)):
+        m = pattern.fullmatch(base)
+        if m is not None:
+            return float(m.group(1)), lost, by_i
+    return None
 
 
 def term_column(

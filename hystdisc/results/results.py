@@ -34,13 +34,12 @@ True
 from __future__ import annotations
 
 import json
-import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import hystdisc.results.text as text
-from hystdisc.errors import HystdiscError, HystdiscWarning
+from hystdisc.errors import HystdiscError
 from hystdisc.models import TermModel
 from hystdisc.registry import experiment_names
 from hystdisc.results.record import Record, SchemaError, list_of, record_of, round_json, table_of
@@ -473,7 +472,9 @@ class Results(Record):
         Inputs ``theta, theta_dot, current`` (the motion across the damper and the coil
         current), output ``torque``, the model's own states; the rig, the measurement
         chain and the rig's structure are not part of it
-        (:func:`hystdisc.apply.control.to_control`).
+        (:func:`hystdisc.apply.control.to_control`). The final model with the open
+        library's accepted terms is the refitted model plus those terms (a play's with a
+        state of its own), as ``hystdisc predict`` uses it.
 
         Parameters
         ----------
@@ -496,13 +497,8 @@ class Results(Record):
 
         refit = self.open_library.refit if self.open_library is not None else None
         if family is None and refit is not None and refit.accepted:
-            warnings.warn(
-                f"the open library's accepted terms ({refit.equation}) are not in the "
-                "exported system, which is the catalogued model as they refitted it",
-                HystdiscWarning,
-                stacklevel=2,
-            )
-            return to_control(self.simulation_model(refitted=True), self.experiment, name)
+            model = self.simulation_model(refitted=True)
+            return to_control(model, self.experiment, name, extra=refit.coefficients)
         return to_control(self.simulation_model(family), self.experiment or "driven", name)
 
     @property

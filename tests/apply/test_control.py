@@ -209,3 +209,31 @@ def test_without_python_control_the_error_names_the_extra(monkeypatch):
     monkeypatch.setitem(sys.modules, "control", None)  # import control raises ImportError
     with pytest.raises(HystdiscError, match=r"hystdisc\[control\]"):
         to_control(Model("dahl").to_terms())
+
+
+def test_the_open_librarys_terms_are_exported_with_a_state_per_play():
+    """The accepted terms of the open library (issue 35) are part of the exported damper:
+    a term of the motion and the current from its name, a play's through a state of its
+    own. Against ``predict``'s columns: the play's gap to 1e-4 of the force's RMS; its
+    lost velocity, a numerical gradient in ``predict`` that spreads each engagement over
+    two samples where the export's state takes it up at once, to 5e-3."""
+    from hystdisc.apply.control import PLAY_SOLVE_IVP_KWARGS, to_control
+
+    model = Model("bouc-wen-std")
+    test = generate(model, "driven", currents=CURRENTS, duration=2.0, fs=500.0, noise=0.0,
+                    seed=1, drives=["0.1@1.0"])  # fmt: skip
+    tm = model.to_terms()
+    gap = {"[theta_dot>0]": 0.5, "i*play(theta,0.005)-theta": 100.0, "i*theta_dot": 1.0}
+    lost = {**gap, "d/dt[play(theta,0.005)-theta]": 2.0}
+    without = predict_dataset(tm, test, "driven")
+    for extra, tol in ((gap, 1e-4), (lost, 5e-3)):
+        sys_ = to_control(tm, "driven", extra=extra)
+        assert sys_.state_labels == ["z", "play_0"]
+        with_terms = predict_dataset(tm, test, "driven", extra=extra)
+        for (T, U), p, b in zip(driven_inputs(test), with_terms, without, strict=True):
+            resp = ct.input_output_response(sys_, T, U, solve_ivp_kwargs=PLAY_SOLVE_IVP_KWARGS)
+            rms = float(np.sqrt(np.mean(p**2)))
+            assert np.sqrt(np.mean((resp.outputs - p) ** 2)) < tol * rms
+            assert np.sqrt(np.mean((b - p) ** 2)) > 0.02 * rms  # the terms do count
+    with pytest.raises(HystdiscError, match=r"unknown term 'theta\^7'.*fix: pass the open"):
+        to_control(tm, "driven", extra={"theta^7": 1.0})
