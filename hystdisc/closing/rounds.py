@@ -284,9 +284,12 @@ class Round:
                     new, verdict = new2, verdict2
                     verdict.restarted = True
         old = self.results.get(s.name)
-        better = old is None or old[1].bic_after is None or new.bic < old[0].bic
-        if old is None or (verdict.ok and (better or verdict.acceptable and not old[1].acceptable)):
+        if old is None:
             self.results[s.name] = (new, verdict)
+        elif verdict.ok:
+            lower = old[1].bic_after is None or new.bic < old[0].bic
+            if lower or (verdict.acceptable and not old[1].acceptable):
+                self.results[s.name] = (new, verdict)
 
     def restart_from(self, s: EffectScore, values: dict) -> None:
         """Refit ``s``'s effect once more from :attr:`restart`'s start at ``values`` (the
