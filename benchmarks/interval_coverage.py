@@ -159,7 +159,13 @@ def render(recs: list[dict], meta: dict) -> str:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--families", default="bouc-wen,bouc-wen-std")
-    ap.add_argument("--sets", type=int, default=4, help="parameter sets per family (0, 1, ...)")
+    ap.add_argument("--sets", type=int, default=4, help="parameter sets per family")
+    ap.add_argument(
+        "--first-set",
+        type=int,
+        default=0,
+        help="the first set (sets first-set, first-set + 1, ...)",
+    )
     ap.add_argument("--seeds", type=int, default=10, help="noise draws per set")
     ap.add_argument("--conditions", default="white")
     ap.add_argument("--duration", type=float, default=stress.DURATION)
@@ -177,7 +183,7 @@ def main(argv: list[str] | None = None) -> int:
     jobs = [
         (f, k, c, d, args.duration)
         for f in fams
-        for k in range(args.sets)
+        for k in range(args.first_set, args.first_set + args.sets)
         for c in conds
         for d in range(args.seeds)
     ]
