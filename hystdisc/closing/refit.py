@@ -21,6 +21,7 @@ from hystdisc.fitting import OEFit, OutputErrorFitter
 from hystdisc.fitting.multistart import screen_start
 from hystdisc.measurement import FitData
 from hystdisc.models import EFFECTS, LAW_PREFIXES, Z_TORQUE_TERMS
+from hystdisc.models.effects import scaled_effect_reason
 from hystdisc.stats import bic_change
 
 #: An effect is accepted only when its refit lowers BIC by more than this (the margin
@@ -108,7 +109,9 @@ def candidate_effects(fit: OEFit, data: FitData) -> tuple[list[str], list[Effect
             continue
         # a state-space family's own laws make its damping and yield depend on the
         # current; a force bias's law (current_bias: the term ``i``) is no law of its own
-        if system and (eff.structural or any(t.startswith(LAW_PREFIXES) for t in eff.terms)):
+        if system and eff.scaled:
+            reason = scaled_effect_reason(fam.name, eff)
+        elif system and (eff.structural or any(t.startswith(LAW_PREFIXES) for t in eff.terms)):
             reason = f"{fam.name} is a state-space family: " + (
                 "the loop does not refit its structural form"
                 if eff.structural

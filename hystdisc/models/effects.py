@@ -248,6 +248,40 @@ def apply_effects(
     return tm
 
 
+def scaled_effect_reason(family: str, effect: Effect) -> str:
+    """Why ``effect``, which scales torque terms of the model (:attr:`Effect.scaled`),
+    has no form on the state-space family ``family``: its force is not a sum of torque
+    terms, so the share would be of nothing and the effect zero.
+
+    Examples
+    --------
+    >>> scaled_effect_reason("spencer", ASYMMETRIC_YIELD)
+    'spencer is a state-space family: its force has no z term for asymmetric_yield to scale (the form on it is not built)'
+    """
+    bases = ", ".join(dict.fromkeys(base for _, _, base in effect.scaled))
+    return (
+        f"{family} is a state-space family: its force has no {bases} term for {effect.name} "
+        "to scale (the form on it is not built)"
+    )
+
+
+def scaled_effect_message(family: str, effect: Effect, term_families: Iterable[str]) -> str:
+    """The one-line error for ``effect`` asked of the state-space family ``family``
+    (:func:`scaled_effect_reason`), with the fix: one of ``term_families``.
+
+    Examples
+    --------
+    >>> msg = scaled_effect_message("tanh", ASYMMETRIC_DAMPING, ["dahl", "lugre"])
+    >>> msg.startswith("tanh: asymmetric_damping would be zero"), msg.endswith("(dahl, lugre)")
+    (True, True)
+    """
+    return (
+        f"{family}: {effect.name} would be zero: {scaled_effect_reason(family, effect)}; "
+        f"fix: leave {effect.name} out, or use a family in term form "
+        f"({', '.join(term_families)})"
+    )
+
+
 def _one_term_effect(name: str, param: Param, term: str, doc: str, hint: str = "") -> Effect:
     """An effect whose single parameter is the coefficient of a single torque term."""
     return Effect(

@@ -46,10 +46,10 @@ from hystdisc.models.compiled import (
     term_vector,
     vector_rate,
 )
-from hystdisc.models.effects import apply_effects
+from hystdisc.models.effects import apply_effects, scaled_effect_message
 from hystdisc.models.params import RIG_PARAMS, Param, check_params
 from hystdisc.models.terms import SIGN_EPS, TermModel
-from hystdisc.registry import effect_names, get_effect, get_experiment
+from hystdisc.registry import effect_names, get_effect, get_experiment, term_family_names
 
 
 def delay_params() -> tuple[str, ...]:
@@ -288,6 +288,9 @@ class FamilySystem(StateSpaceModel):
         self.experiment = get_experiment(experiment)
         self.effects = tuple(get_effect(e).name for e in effects)
         self._effects = [get_effect(e) for e in self.effects]
+        for eff in self._effects:
+            if eff.scaled:  # its share is of a torque term this family does not have
+                raise HystdiscError(scaled_effect_message(family.name, eff, term_family_names()))
         exp = self.experiment
         self.name = f"{family.name} ({exp.name})"
         fam_params = tuple(p for p in family.params if p.name not in family.mech_drop)

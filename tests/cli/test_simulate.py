@@ -161,6 +161,38 @@ def test_refuses_to_overwrite(tmp_path, capsys):
         (["--model", "dahl", "--experiment", "forced", "--input", "square"], ["input kind"]),
         (["--model", "dahl", "--effect", "magic"], ["unknown effect 'magic'"]),
         (["--model", "dahl", "--effect", "coulomb:g=1"], ["unknown parameter 'g'"]),
+        # a share of a torque term a state-space family does not have: zero, not data
+        (
+            [
+                "--model",
+                "spencer",
+                "--experiment",
+                "driven",
+                "--drive",
+                "0.2@0.5",
+                "--effect",
+                "asymmetric_yield:r_y=0.3",
+            ],
+            [
+                "spencer: asymmetric_yield would be zero: spencer is a state-space family: its "
+                "force has no z term for asymmetric_yield to scale (the form on it is not "
+                "built); fix: leave asymmetric_yield out, or use a family in term form "
+                "(bingham, dahl, lugre, bouc-wen, bouc-wen-std)"
+            ],
+        ),
+        (
+            [
+                "--model",
+                "tanh",
+                "--experiment",
+                "driven",
+                "--drive",
+                "0.2@0.5",
+                "--effect",
+                "asymmetric_damping",
+            ],
+            ["tanh: asymmetric_damping would be zero", "no theta_dot term"],
+        ),
         (["--model", "dahl", "--duration"], ["expected one argument"]),
         (["--set", "k_s=1"], ["no model given"]),
         (["--scenario", "missing.toml"], ["does not exist"]),

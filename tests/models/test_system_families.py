@@ -183,6 +183,24 @@ TANH_TRUTH = {
 }
 
 
+def test_the_loop_says_why_it_cannot_try_an_asymmetry_on_spencer(spencer_fit):
+    """An asymmetric yield or damping is a share of the model's ``z`` or ``theta_dot``
+    torque term; Spencer's force has neither, so the loop tried them at evidence 0 ("not
+    refitted (too little evidence)") and ``simulate`` wrote Spencer without them. Now
+    neither is a candidate, and the reason says so."""
+    from hystdisc.closing.refit import candidate_effects
+
+    d, _, _ = spencer_fit
+    candidates, skipped = candidate_effects(d.final_fit_, d.fit_data_)
+    reasons = {s.name: s.reason for s in skipped}
+    for name, base in (("asymmetric_yield", "z"), ("asymmetric_damping", "theta_dot")):
+        assert name not in candidates
+        assert reasons[name] == (
+            f"spencer is a state-space family: its force has no {base} term for {name} to "
+            "scale (the form on it is not built)"
+        )
+
+
 def test_tanh_is_selected_with_its_parameters_on_its_own_data():
     m = Model("tanh", TANH_TRUTH)
     kw = dict(currents=(0.0, 0.5, 1.0), duration=2.0, fs=250, drives=DRIVES, seed=2)
