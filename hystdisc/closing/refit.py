@@ -107,10 +107,10 @@ def candidate_effects(fit: OEFit, data: FitData) -> tuple[list[str], list[Effect
         reason = None
         if name in par.effects:
             continue
+        if system and eff.scaled:  # a share of a torque term the family does not have
+            reason = scaled_effect_reason(fam.name, eff)
         # a state-space family's own laws make its damping and yield depend on the
         # current; a force bias's law (current_bias: the term ``i``) is no law of its own
-        if system and eff.scaled:
-            reason = scaled_effect_reason(fam.name, eff)
         elif system and (eff.structural or any(t.startswith(LAW_PREFIXES) for t in eff.terms)):
             reason = f"{fam.name} is a state-space family: " + (
                 "the loop does not refit its structural form"

@@ -163,16 +163,8 @@ def test_refuses_to_overwrite(tmp_path, capsys):
         (["--model", "dahl", "--effect", "coulomb:g=1"], ["unknown parameter 'g'"]),
         # a share of a torque term a state-space family does not have: zero, not data
         (
-            [
-                "--model",
-                "spencer",
-                "--experiment",
-                "driven",
-                "--drive",
-                "0.2@0.5",
-                "--effect",
-                "asymmetric_yield:r_y=0.3",
-            ],
+            "--model spencer --experiment driven --drive 0.2@0.5 "
+            "--effect asymmetric_yield:r_y=0.3".split(),
             [
                 "spencer: asymmetric_yield would be zero: spencer is a state-space family: its "
                 "force has no z term for asymmetric_yield to scale (the form on it is not "
@@ -181,16 +173,7 @@ def test_refuses_to_overwrite(tmp_path, capsys):
             ],
         ),
         (
-            [
-                "--model",
-                "tanh",
-                "--experiment",
-                "driven",
-                "--drive",
-                "0.2@0.5",
-                "--effect",
-                "asymmetric_damping",
-            ],
+            "--model tanh --experiment driven --drive 0.2@0.5 --effect asymmetric_damping".split(),
             ["tanh: asymmetric_damping would be zero", "no theta_dot term"],
         ),
         (["--model", "dahl", "--duration"], ["expected one argument"]),
