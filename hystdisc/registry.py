@@ -61,6 +61,7 @@ EFFECTS: dict[str, Any] = {
     "shear_thinning": "hystdisc.models.effects:SHEAR_THINNING",
     "bias": "hystdisc.models.effects:BIAS",
     "current_bias": "hystdisc.models.effects:CURRENT_BIAS",
+    "level_bias": "hystdisc.models.level_bias:LEVEL_BIAS",
     "asymmetric_damping": "hystdisc.models.effects:ASYMMETRIC_DAMPING",
     "asymmetric_yield": "hystdisc.models.effects:ASYMMETRIC_YIELD",
     "backlash": "hystdisc.models.backlash:BACKLASH",

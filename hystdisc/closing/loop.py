@@ -89,7 +89,7 @@ from hystdisc.closing.residual import (
     assess_residual,
     natural_frequency,
 )
-from hystdisc.closing.rounds import Restart, Round, refit_queue, snapshot
+from hystdisc.closing.rounds import MIN_EXCESS_SHARE, Restart, Round, refit_queue, snapshot
 from hystdisc.closing.scores import EffectScore, score_effects, wald_chi2, with_effects
 from hystdisc.closing.structural import score_structural
 from hystdisc.data.envelope import Envelope
@@ -289,6 +289,8 @@ def augment(
     candidates = [c for c in candidates if c not in decided]
     out.skipped = skipped
     rejected: set[str] = set()
+    # effects rejected for their share of the excess alone: the RSS each removed
+    share_gain: dict[str, float] = {}
     steps: dict[str, EffectVerdict] = {}  # each accepted effect's verdict
     fits: dict[frozenset, OEFit] = {frozenset(): fit}  # best fit of each effect set
     cells: dict[str, list[dict] | None] = {}  # a structural effect's best screened cells
@@ -373,6 +375,9 @@ def augment(
                 continue
             rejected.add(verdict.name)
             verdict.reject()
+            if verdict.share_only:
+                excess = current.rss - current.n_obs * noise_std**2
+                share_gain[verdict.name] = verdict.excess_share * max(excess, 0.0)
         if w is not None:
             new, verdict = w
             verdict.accepted = True
@@ -380,6 +385,14 @@ def augment(
             out.effects.append(verdict.name)
             fits[frozenset(out.effects)] = new
             current = _backward(data, new, out, max_nfev, heldout, say, fits)
+            # the excess shrank: a gain too small a share of the old one may count now
+            excess = current.rss - current.n_obs * noise_std**2
+            again = [n for n, g in share_gain.items() if g >= MIN_EXCESS_SHARE * excess > 0]
+            if again:
+                say(f"closing the loop: {', '.join(again)} tried again (the excess shrank)")
+                rejected -= set(again)
+                for n in again:
+                    del share_gain[n]
             continue
         hops = [
             (f, v)

@@ -146,6 +146,25 @@ class EffectVerdict:
         better on held-out data, physically admissible."""
         return bool(self.improves and self.significant and self.predicts and self.admissible)
 
+    @property
+    def share_only(self) -> bool:
+        """It passed every test but the share of the excess: it lowered BIC, is
+        significant, admissible and predicts the held-out data better, yet removes less
+        than :data:`~hystdisc.closing.rounds.MIN_EXCESS_SHARE` of the residual's excess.
+        Once another effect shrinks the excess, the same gain may be a share that counts
+        (the loop tries it again then)."""
+        lowered = (
+            self.bic_after is not None and self.bic_after < self.bic_before - EFFECT_BIC_MARGIN
+        )
+        return bool(
+            self.ok
+            and lowered
+            and not self.improves
+            and self.significant
+            and self.predicts
+            and self.admissible
+        )
+
     def rejection(self) -> str:
         """Why the effect is not accepted: every test it failed, in the order applied (the
         held-out error is not computed for a refit that failed another test).

@@ -62,3 +62,23 @@ def test_each_folds_heldout_error():
         "removes only 5 % of the residual's excess over the noise and lowers the held-out "
         "error in 5 of its 6 held-out folds"
     )
+
+
+def test_a_verdict_rejected_for_its_share_alone_is_one_to_try_again():
+    """The loop tries an effect again once the excess shrank when the share of the excess
+    was the only test it failed; any other failed test keeps it rejected."""
+    from dataclasses import replace
+
+    from hystdisc.closing.records import EffectVerdict
+
+    v = EffectVerdict("level_bias", 3, 0.07, rms_before=0.14, rms_after=0.137, bic_before=0.0,
+                      bic_after=-1188.0, wald_chi2=400.0, heldout_rms_before=0.17,
+                      heldout_rms_after=0.168, ok=True, significant=True, excess_share=0.07,
+                      heldout_folds=3, heldout_folds_lower=3)  # fmt: skip
+    assert v.share_only
+    assert not replace(v, significant=False).share_only
+    assert not replace(v, predicts=False).share_only
+    assert not replace(v, admissible=False).share_only
+    assert not replace(v, bic_after=-1.0).share_only  # BIC not lowered by the margin
+    assert not replace(v, improves=True).share_only  # it passed the share: not rejected for it
+    assert not replace(v, ok=False).share_only
