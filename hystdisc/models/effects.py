@@ -282,7 +282,7 @@ def scaled_effect_message(family: str, effect: Effect, term_families: Iterable[s
     )
 
 
-def _one_term_effect(name: str, param: Param, term: str, doc: str, hint: str = "") -> Effect:
+def one_term_effect(name: str, param: Param, term: str, doc: str, hint: str = "") -> Effect:
     """An effect whose single parameter is the coefficient of a single torque term."""
     return Effect(
         name,
@@ -339,7 +339,7 @@ _ONE_TERM = (
 )
 
 CURRENT_VISCOUS, CURRENT_SATURATION, COULOMB, QUADRATIC_DAMPING, CUBIC_STIFFNESS = (
-    _one_term_effect(*row) for row in _ONE_TERM
+    one_term_effect(*row) for row in _ONE_TERM
 )
 CUBIC_STIFFNESS = replace(CUBIC_STIFFNESS, rig=True, roles=("spring",))  # the rig's spring
 CURRENT_SATURATION = replace(CURRENT_SATURATION, roles=("current_law",))

@@ -22,19 +22,20 @@ True
 
 from __future__ import annotations
 
-from hystdisc.models.effects import Effect
+from dataclasses import replace
+
+from hystdisc.models.effects import one_term_effect
 from hystdisc.models.params import BIG, Param
 
-LEVEL_BIAS = Effect(
-    "level_bias",
-    (Param("f_0i", "N*m/A", -BIG, BIG, -0.2, "growth of the force bias with the current"),),
-    ("i",),
-    "a force bias that grows with the current, f_0i * i, where the spring holds the "
-    "constant part (its neutral angle, the offset): a field-dependent zero of the force "
-    "sensor, a magnetized part's pull",
-    lambda p, ks: {"i": p["f_0i"]},
-    lambda c, ks: {"f_0i": c.get("i", 0.0)},
-    "",
+LEVEL_BIAS = replace(
+    one_term_effect(
+        "level_bias",
+        Param("f_0i", "N*m/A", -BIG, BIG, -0.2, "growth of the force bias with the current"),
+        "i",
+        "a force bias that grows with the current, f_0i * i, where the spring holds the "
+        "constant part (its neutral angle, the offset): a field-dependent zero of the force "
+        "sensor, a magnetized part's pull",
+    ),
     roles=("spring",),
 )
 """The per-level part of a force bias on a model with a spring (see the module)."""
