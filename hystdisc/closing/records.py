@@ -147,18 +147,21 @@ class EffectVerdict:
         return bool(self.improves and self.significant and self.predicts and self.admissible)
 
     @property
+    def lowers_bic(self) -> bool:
+        """Its refit lowered BIC by more than
+        :data:`~hystdisc.closing.refit.EFFECT_BIC_MARGIN`."""
+        return self.bic_after is not None and self.bic_after < self.bic_before - EFFECT_BIC_MARGIN
+
+    @property
     def share_only(self) -> bool:
         """It passed every test but the share of the excess: it lowered BIC, is
         significant, admissible and predicts the held-out data better, yet removes less
         than :data:`~hystdisc.closing.rounds.MIN_EXCESS_SHARE` of the residual's excess.
         Once another effect shrinks the excess, the same gain may be a share that counts
         (the loop tries it again then)."""
-        lowered = (
-            self.bic_after is not None and self.bic_after < self.bic_before - EFFECT_BIC_MARGIN
-        )
         return bool(
             self.ok
-            and lowered
+            and self.lowers_bic
             and not self.improves
             and self.significant
             and self.predicts
@@ -177,7 +180,7 @@ class EffectVerdict:
         if not self.ok:
             return "its refit did not converge to finite values"
         failed = []
-        lowered = self.bic_after < self.bic_before - EFFECT_BIC_MARGIN
+        lowered = self.lowers_bic
         if not lowered:
             failed.append("did not lower BIC")
         elif not self.improves:
