@@ -41,6 +41,7 @@ from hystdisc.data.envelope import Envelope
 from hystdisc.errors import HystdiscError
 from hystdisc.fitting import OEFit, OutputErrorFitter
 from hystdisc.fitting.lm import levenberg_marquardt
+from hystdisc.models import EFFECTS
 from hystdisc.models.term_columns import term_column
 from hystdisc.simulation.admissibility import check_admissible
 from hystdisc.stats import bic
@@ -80,6 +81,11 @@ class TermsRefit:
     dropped : list of str
         Terms of the library's set left out: its spring terms, when with them the spring
         softened to a negative stiffness (:func:`refit_admissible`).
+    redundant : dict of str to float
+        The model's catalogued effects the terms made redundant, each with its Wald
+        chi-square (smallest squared z-score of its parameters) in the fit with the terms:
+        left out of the refitted model, since its parameter was no longer significant and
+        BIC fell without it (an effect accepted as a stand-in for what the terms describe).
     fit : OEFit or None
         The model's fit moved to the refitted parameters (its residual, RMS and intervals
         are the catalogued model's at its own optimum; not in ``results.json``: the
@@ -110,6 +116,7 @@ class TermsRefit:
     accepted: bool = False
     note: str = ""
     dropped: list[str] = field(default_factory=list)
+    redundant: dict[str, float] = field(default_factory=dict)
     fit: OEFit | None = field(default=None, repr=False, compare=False)
 
     @property
@@ -279,22 +286,20 @@ def refit_terms(
     v_fit = np.concatenate([par.x0, np.asarray(fit.nuisance, dtype=float).ravel()])
     G = columns(data, names)
     v, resid, c = _fit(fitter, v_fit, G, max_nfev)
-    npar = len(par.names)
     n, p = resid.size, len(names)
     n_eff = float(data.n_eff()) if any(data.run_filters()) else float(n)
+    joint = _Joint(fitter, v, resid, c, fit.n_params + p)
+    joint, redundant = _without_redundant(data, fit, joint, G, n, n_eff, max_nfev)
+    fitter, v, resid, c = joint.fitter, joint.v, joint.resid, joint.c
+    npar = len(fitter.par.names)
     rss = float(resid @ resid)
-    k0 = fit.n_params
-    bic_after = bic(rss, n, k0 + p, n_eff=n_eff)
-    # the coefficients' standard errors from the whole Jacobian at the optimum
-    with np.errstate(all="ignore"):
-        J = np.column_stack([fitter.jacobian(v), G])
-    sc = np.sqrt(np.mean(J**2, axis=0))
-    sc[sc == 0] = 1.0
-    cov = np.linalg.pinv((J / sc).T @ (J / sc)) / np.outer(sc, sc) * rss / max(n - J.shape[1], 1)
-    se = np.sqrt(np.clip(np.diag(cov)[-p:], 0.0, None) * n / n_eff)
+    bic_after = bic(rss, n, joint.k, n_eff=n_eff)
+    se = np.sqrt(np.clip(np.diag(joint.cov(G, n, n_eff))[-p:], 0.0, None))
     excess = fit.rss - fit.n_obs * floor**2
     share = (fit.rss - rss) / excess if excess > 0 else 0.0
-    moved = dataclasses.replace(fit, x=v[:npar], nuisance=v[npar:].reshape(fit.nuisance.shape))
+    moved = dataclasses.replace(
+        fit, par=fitter.par, x=v[:npar], nuisance=v[npar:].reshape(fit.nuisance.shape)
+    )
     if envelope is None:
         envelope = Envelope.from_runs(data.names, data.t, data.theta, data.theta_dot, data.currents)
     adm = check_admissible(moved.model if moved.is_system else moved.term_part, envelope)
@@ -304,7 +309,7 @@ def refit_terms(
         terms=names,
         coefficients=dict(zip(names, map(float, c), strict=True)),
         stderr=dict(zip(names, map(float, se), strict=True)),
-        params=dict(zip(par.names, map(float, v[:npar]), strict=True)),
+        params=dict(zip(fitter.par.names, map(float, v[:npar]), strict=True)),
         rms_before=float(fit.rms),
         rms_after=float(np.sqrt(rss / n)),
         bic_before=float(fit.bic),
@@ -313,17 +318,100 @@ def refit_terms(
         heldout_after=None,
         excess_share=float(share),
         admissible=bool(adm.ok and absorbs and soft is None),
+        redundant=redundant,
         fit=moved,
     )
     # the model without the terms is held out once for every term set of one fit
     without = before if before is not None else _heldout(data, par, v_fit, None, max_nfev)
-    with_terms = _heldout(data, par, v, names, max_nfev)
+    with_terms = _heldout(data, fitter.par, v, names, max_nfev)
     if without[0] is not None and with_terms[0] is not None:  # else: a fold diverged
         out.heldout_before, out.fold_before = without
         out.heldout_after, out.fold_after = with_terms
     violation = adm.violations[0] if not adm.ok else soft
     out.accepted, out.note = _verdict(out, violation, absorbs)
     return out
+
+
+@dataclass
+class _Joint:
+    """The model fitted with the terms: its fitter, the vector (parameters, then the
+    runs' initial states), the residual, the terms' coefficients, and the free
+    parameters counted with the terms (BIC's ``k``)."""
+
+    fitter: OutputErrorFitter
+    v: np.ndarray
+    resid: np.ndarray
+    c: np.ndarray
+    k: int
+
+    def cov(self, G: np.ndarray, n: int, n_eff: float) -> np.ndarray:
+        """The covariance of the vector and the coefficients (last), from the whole
+        Jacobian at the optimum, for ``n_eff`` independent samples of ``n``."""
+        with np.errstate(all="ignore"):
+            J = np.column_stack([self.fitter.jacobian(self.v), G])
+        sc = np.sqrt(np.mean(J**2, axis=0))
+        sc[sc == 0] = 1.0
+        rss = float(self.resid @ self.resid)
+        scaled = np.linalg.pinv((J / sc).T @ (J / sc)) / np.outer(sc, sc)
+        return scaled * rss / max(n - J.shape[1], 1) * n / n_eff
+
+    def weak_effects(self, G: np.ndarray, n: int, n_eff: float) -> list[tuple[float, str]]:
+        """The model's catalogued effects whose parameter is not significant beside the
+        terms (squared z-score at most ``log n``, the rule of
+        :func:`~hystdisc.closing.scores.wald_chi2`), weakest first, with that chi-square."""
+        par = self.fitter.par
+        se = np.sqrt(np.clip(np.diag(self.cov(G, n, n_eff))[: len(par.names)], 0.0, None))
+        z2 = {
+            q: (float(x) / s) ** 2 if s > 0 else np.inf
+            for q, x, s in zip(par.names, self.v, se, strict=False)
+        }
+        out = []
+        for name in par.effects:
+            eff = EFFECTS[name]
+            own = [q.name for q in eff.params if q.name in z2]
+            own = [q for q in own if not eff.significance or q in eff.significance]
+            if own and min(z2[q] for q in own) <= np.log(n):
+                out.append((min(z2[q] for q in own), name))
+        return sorted(out)
+
+
+def _without_redundant(
+    data, fit: OEFit, joint: _Joint, G: np.ndarray, n: int, n_eff: float, iters: int
+) -> tuple[_Joint, dict[str, float]]:
+    """The model with the terms, without the catalogued effects the terms made
+    redundant: the weakest effect whose parameter is no longer significant is left out
+    and the model refitted with the terms from there, kept when BIC falls; until none is.
+
+    The loop accepts an effect by what it removes of a residual that the catalogue cannot
+    describe; an effect that only stood in for the terms (a constant bias for the mean of
+    a stiffness in tension alone) has nothing left to explain once they are in. Returns
+    the kept joint fit and each dropped effect's chi-square beside the terms."""
+    dropped: dict[str, float] = {}
+    skip: set[str] = set()
+    while True:
+        weak = [(z2, e) for z2, e in joint.weak_effects(G, n, n_eff) if e not in skip]
+        if not weak:
+            return joint, dropped
+        z2, name = weak[0]
+        par = joint.fitter.par
+        npar = len(par.names)
+        start = {**fit.params, **dict(zip(par.names, map(float, joint.v[:npar]), strict=True))}
+        smaller = par.like(start, tuple(e for e in par.effects if e != name))
+        sub = OutputErrorFitter(data, smaller, max_nfev=iters)
+        if sub.nnu != joint.fitter.nnu:  # the effect has states of its own: kept
+            skip.add(name)
+            continue
+        v0 = np.concatenate([smaller.x0, joint.v[npar:]])
+        v, resid, c = _fit(sub, v0, G, iters)
+        k = joint.k - (npar - len(smaller.names))
+        rss, rss0 = float(resid @ resid), float(joint.resid @ joint.resid)
+        if not (
+            np.isfinite(rss) and bic(rss, n, k, n_eff=n_eff) < bic(rss0, n, joint.k, n_eff=n_eff)
+        ):
+            skip.add(name)
+            continue
+        joint = _Joint(sub, v, resid, c, k)
+        dropped[name] = float(z2)
 
 
 def _heldout(data, par, v0, names, iters) -> tuple[float | None, list[float]]:

@@ -8,6 +8,7 @@ import numpy as np
 from hystdisc.registry import effect_names, get_effect
 from hystdisc.report.markup import ci_text, color_of, new_figure, num
 from hystdisc.results import ResidualSummary
+from hystdisc.results.text import redundant_sentence
 
 
 class StageSections:
@@ -230,6 +231,8 @@ class StageSections:
             f"left out and both models refitted on the others, {held}. {verdict}: "
             f"{r.get('note', '')}."
         )
+        if r.get("redundant"):
+            self.p(redundant_sentence(r["redundant"]).capitalize() + ".")
 
     def _residual_map(self) -> None:
         """Where the model misses: the residual against displacement and velocity."""

@@ -231,6 +231,9 @@ class LibraryRefitRecord(Record):
         ``F_extra = ...`` with the refitted coefficients.
     dropped : list of str
         Terms of the library's set left out (its spring, which softened).
+    redundant : dict of str to float
+        Catalogued effects of the model the terms made redundant (left out of the
+        refitted model), each with its chi-square beside the terms.
     model, system_model : dict or None
         The refitted model, as ``model`` and ``system_model`` hold the final one
         (:meth:`hystdisc.results.Results.simulation_model` with ``refitted=True``).
@@ -257,6 +260,7 @@ class LibraryRefitRecord(Record):
     note: str = ""
     equation: str = ""
     dropped: list[str] = field(default_factory=list)
+    redundant: dict[str, float] = field(default_factory=dict)
     model: dict[str, Any] | None = None
     system_model: dict[str, Any] | None = None
     extra: dict[str, Any] = field(default_factory=dict, repr=False)

@@ -271,7 +271,26 @@ def library_refit_lines(refit) -> list[str]:
     out.append(
         f"    RMS {refit.rms_before:.4g} -> {refit.rms_after:.4g}, {held}: {verdict}, {refit.note}"
     )
+    if refit.redundant:
+        out.append(f"    {redundant_sentence(refit.redundant)}")
     return out
+
+
+def redundant_sentence(redundant: dict[str, float]) -> str:
+    """The catalogued effects the open library's terms made redundant, in words.
+
+    Examples
+    --------
+    >>> redundant_sentence({"offset": 0.04, "level_bias": 1.2})
+    'the refitted model leaves out offset, level_bias: beside the terms their parameters are no longer significant (z^2 0.04, 1.2) and BIC falls without them; they stood in for what the terms describe'
+    """
+    names = ", ".join(redundant)
+    z2 = ", ".join(f"{v:.2g}" for v in redundant.values())
+    return (
+        f"the refitted model leaves out {names}: beside the terms their parameters are no "
+        f"longer significant (z^2 {z2}) and BIC falls without them; they stood in for what "
+        "the terms describe"
+    )
 
 
 _HOW = {
