@@ -156,6 +156,14 @@ def effects_table(res: Results) -> list[str]:
             f"  Final model: {' + '.join([fin.family, *fin.effects])}, "
             f"RMS {fin.rms:.4g}{ratio}{held}, BIC {fin.bic:.1f}"
         )
+        refit = res.open_library.refit if res.open_library is not None else None
+        if refit is not None and refit.accepted and refit.redundant:
+            kept = [e for e in fin.effects if e not in refit.redundant]
+            out.append(
+                f"  With the open library's accepted terms (below): "
+                f"{' + '.join([fin.family, *kept, 'F_extra'])}; "
+                f"{', '.join(refit.redundant)} only stood in for them"
+            )
         if fin.effects:  # the family's own parameters move when an effect enters
             effect_params = {k for e in res.effects for k in e.parameters}
             out.append("  Final model's parameters (95 % intervals):")

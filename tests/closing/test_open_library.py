@@ -190,6 +190,7 @@ def test_the_loop_reports_what_the_catalogue_left(tmp_path):
     assert res.open_library.refit.accepted and res.open_library.refit.lower == 2
     assert set(res.open_library.refit.redundant) == stand_ins
     assert f"the refitted model leaves out {', '.join(fix.redundant)}: " in res.report()
+    assert f"(below): {FAMILY} + F_extra; {', '.join(fix.redundant)} only stood" in res.report()
     assert "refitted into the model by output error: F_extra = " in res.report()
     assert res.open_library["terms"][0]["name"] == "theta*[theta>0]"
     assert "Open library (" in res.report() and "T_extra = " in res.report()
