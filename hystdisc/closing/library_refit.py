@@ -32,16 +32,17 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
 from hystdisc.closing.refit import EFFECT_BIC_MARGIN
 from hystdisc.closing.rounds import MIN_EXCESS_SHARE, MIN_FOLDS_ALL
+from hystdisc.closing.scores import effect_z2, significance_params
 from hystdisc.data.envelope import Envelope
 from hystdisc.errors import HystdiscError
 from hystdisc.fitting import OEFit, OutputErrorFitter
 from hystdisc.fitting.lm import levenberg_marquardt
-from hystdisc.models import EFFECTS
 from hystdisc.models.term_columns import term_column
 from hystdisc.simulation.admissibility import check_admissible
 from hystdisc.stats import bic
@@ -288,13 +289,13 @@ def refit_terms(
     v, resid, c = _fit(fitter, v_fit, G, max_nfev)
     n, p = resid.size, len(names)
     n_eff = float(data.n_eff()) if any(data.run_filters()) else float(n)
-    joint = _Joint(fitter, v, resid, c, fit.n_params + p)
-    joint, redundant = _without_redundant(data, fit, joint, G, n, n_eff, max_nfev)
+    joint = _Joint(fitter, v, resid, c, fit.n_params + p, G, n_eff)
+    joint, redundant = _without_redundant(data, fit, joint, max_nfev)
     fitter, v, resid, c = joint.fitter, joint.v, joint.resid, joint.c
     npar = len(fitter.par.names)
-    rss = float(resid @ resid)
-    bic_after = bic(rss, n, joint.k, n_eff=n_eff)
-    se = np.sqrt(np.clip(np.diag(joint.cov(G, n, n_eff))[-p:], 0.0, None))
+    rss = joint.rss
+    bic_after = joint.bic
+    se = np.sqrt(np.clip(np.diag(joint.cov)[-p:], 0.0, None))
     excess = fit.rss - fit.n_obs * floor**2
     share = (fit.rss - rss) / excess if excess > 0 else 0.0
     moved = dataclasses.replace(
@@ -334,49 +335,59 @@ def refit_terms(
 
 @dataclass
 class _Joint:
-    """The model fitted with the terms: its fitter, the vector (parameters, then the
-    runs' initial states), the residual, the terms' coefficients, and the free
-    parameters counted with the terms (BIC's ``k``)."""
+    """The model fitted with the terms ``G`` (columns) on ``n`` residuals worth ``n_eff``
+    independent samples: its fitter, the vector (parameters, then the runs' initial
+    states), the residual, the terms' coefficients, and the free parameters counted with
+    the terms (BIC's ``k``)."""
 
     fitter: OutputErrorFitter
     v: np.ndarray
     resid: np.ndarray
     c: np.ndarray
     k: int
+    G: np.ndarray
+    n_eff: float
 
-    def cov(self, G: np.ndarray, n: int, n_eff: float) -> np.ndarray:
+    @property
+    def rss(self) -> float:
+        return float(self.resid @ self.resid)
+
+    @property
+    def bic(self) -> float:
+        return bic(self.rss, self.resid.size, self.k, n_eff=self.n_eff)
+
+    @cached_property
+    def cov(self) -> np.ndarray:
         """The covariance of the vector and the coefficients (last), from the whole
-        Jacobian at the optimum, for ``n_eff`` independent samples of ``n``."""
+        Jacobian at the optimum."""
         with np.errstate(all="ignore"):
-            J = np.column_stack([self.fitter.jacobian(self.v), G])
+            J = np.column_stack([self.fitter.jacobian(self.v), self.G])
         sc = np.sqrt(np.mean(J**2, axis=0))
         sc[sc == 0] = 1.0
-        rss = float(self.resid @ self.resid)
+        n = self.resid.size
         scaled = np.linalg.pinv((J / sc).T @ (J / sc)) / np.outer(sc, sc)
-        return scaled * rss / max(n - J.shape[1], 1) * n / n_eff
+        return scaled * self.rss / max(n - J.shape[1], 1) * n / self.n_eff
 
-    def weak_effects(self, G: np.ndarray, n: int, n_eff: float) -> list[tuple[float, str]]:
-        """The model's catalogued effects whose parameter is not significant beside the
-        terms (squared z-score at most ``log n``, the rule of
-        :func:`~hystdisc.closing.scores.wald_chi2`), weakest first, with that chi-square."""
-        par = self.fitter.par
-        se = np.sqrt(np.clip(np.diag(self.cov(G, n, n_eff))[: len(par.names)], 0.0, None))
-        z2 = {
-            q: (float(x) / s) ** 2 if s > 0 else np.inf
-            for q, x, s in zip(par.names, self.v, se, strict=False)
-        }
+    def weak_effects(self) -> list[tuple[float, str]]:
+        """The model's catalogued effects whose parameters are free and not significant
+        beside the terms (:func:`~hystdisc.closing.scores.effect_z2` at most ``log n``, the
+        loop's rule for a redundant effect), weakest first, with that chi-square."""
+        names = self.fitter.par.names
+        se = np.sqrt(np.clip(np.diag(self.cov)[: len(names)], 0.0, None))
+        values = dict(zip(names, map(float, self.v), strict=False))
+        stderr = dict(zip(names, map(float, se), strict=True))
         out = []
-        for name in par.effects:
-            eff = EFFECTS[name]
-            own = [q.name for q in eff.params if q.name in z2]
-            own = [q for q in own if not eff.significance or q in eff.significance]
-            if own and min(z2[q] for q in own) <= np.log(n):
-                out.append((min(z2[q] for q in own), name))
+        for name in self.fitter.par.effects:
+            if not set(significance_params(name)) <= values.keys():
+                continue  # judged by a derived parameter (a compliance's stiffness)
+            z2 = effect_z2(name, values, stderr)
+            if z2 <= np.log(self.resid.size):
+                out.append((z2, name))
         return sorted(out)
 
 
 def _without_redundant(
-    data, fit: OEFit, joint: _Joint, G: np.ndarray, n: int, n_eff: float, iters: int
+    data, fit: OEFit, joint: _Joint, iters: int
 ) -> tuple[_Joint, dict[str, float]]:
     """The model with the terms, without the catalogued effects the terms made
     redundant: the weakest effect whose parameter is no longer significant is left out
@@ -389,7 +400,7 @@ def _without_redundant(
     dropped: dict[str, float] = {}
     skip: set[str] = set()
     while True:
-        weak = [(z2, e) for z2, e in joint.weak_effects(G, n, n_eff) if e not in skip]
+        weak = [(z2, e) for z2, e in joint.weak_effects() if e not in skip]
         if not weak:
             return joint, dropped
         z2, name = weak[0]
@@ -401,17 +412,13 @@ def _without_redundant(
         if sub.nnu != joint.fitter.nnu:  # the effect has states of its own: kept
             skip.add(name)
             continue
-        v0 = np.concatenate([smaller.x0, joint.v[npar:]])
-        v, resid, c = _fit(sub, v0, G, iters)
+        v, resid, c = _fit(sub, np.concatenate([smaller.x0, joint.v[npar:]]), joint.G, iters)
         k = joint.k - (npar - len(smaller.names))
-        rss, rss0 = float(resid @ resid), float(joint.resid @ joint.resid)
-        if not (
-            np.isfinite(rss) and bic(rss, n, k, n_eff=n_eff) < bic(rss0, n, joint.k, n_eff=n_eff)
-        ):
+        new = _Joint(sub, v, resid, c, k, joint.G, joint.n_eff)
+        if not (np.isfinite(new.rss) and new.bic < joint.bic):
             skip.add(name)
             continue
-        joint = _Joint(sub, v, resid, c, k)
-        dropped[name] = float(z2)
+        joint, dropped[name] = new, float(z2)
 
 
 def _heldout(data, par, v0, names, iters) -> tuple[float | None, list[float]]:

@@ -17,7 +17,7 @@ the model's terms projected out (a second view that the local optimum cannot tra
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -391,13 +391,29 @@ def wald_chi2(fit: OEFit, effect: str) -> float:
         ``min (value / stderr)^2`` over the effect's parameters (about chi-square with one
         degree of freedom when the effect is absent).
     """
-    out = np.inf
+    return effect_z2(effect, fit.params, fit.stderr)
+
+
+def significance_params(effect: str) -> list[str]:
+    """The parameters whose z-scores say the effect ``effect`` is there (its
+    :attr:`~hystdisc.models.Effect.significance` ones when it names them, else all)."""
     eff = EFFECTS[effect]
-    for p in eff.params:
-        if eff.significance and p.name not in eff.significance:
-            continue
-        v = fit.params.get(p.name, 0.0)
-        se = fit.stderr.get(p.name, np.inf)
+    return [p.name for p in eff.params if not eff.significance or p.name in eff.significance]
+
+
+def effect_z2(effect: str, values: Mapping[str, float], stderr: Mapping[str, float]) -> float:
+    """:func:`wald_chi2` from the parameters' ``values`` and standard errors ``stderr``
+    (a parameter missing from them counts as 0 with an infinite error).
+
+    Examples
+    --------
+    >>> effect_z2("coulomb", {"f_c": 0.3}, {"f_c": 0.1})
+    9.0
+    """
+    out = np.inf
+    for name in significance_params(effect):
+        v = values.get(name, 0.0)
+        se = stderr.get(name, np.inf)
         z2 = (v / se) ** 2 if se > 0 else (np.inf if v != 0 else 0.0)
         out = min(out, float(z2) if np.isfinite(z2) else (np.inf if se == 0 else 0.0))
     return float(out)
