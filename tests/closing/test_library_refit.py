@@ -38,6 +38,28 @@ def test_a_discovered_step_is_refitted_and_predicts_held_out_conditions_at_the_n
     assert r.equation() == f"F_extra = {c:.4g}*[theta_dot>0]"
 
 
+def test_an_effect_that_stood_in_for_the_term_is_left_out():
+    """A constant bias fitted on the step takes the step's mean (significant without the
+    term); beside the term it has nothing left to explain: the refit leaves it out (a
+    state-space family: its parametrization is rebuilt without the effect), keeps the
+    coefficient at the truth and predicts each drive left out at the noise."""
+    from hystdisc.closing.scores import wald_chi2
+    from hystdisc.fitting import OutputErrorFitter
+
+    d = _fit("step", "tanh")
+    base = d.family_fits_["tanh"]
+    par = base.par.like({**base.params, "f_0": STEP / 2}, ("bias",))
+    fit = OutputErrorFitter(d.fit_data_, par, max_nfev=60).fit(heldout=False)
+    assert wald_chi2(fit, "bias") > 10 * np.log(fit.n_obs)  # it stood in for the step
+    r = refit_terms(d.fit_data_, fit, ["[theta_dot>0]"], floor=NOISE)
+    assert r.accepted, r.note
+    assert list(r.redundant) == ["bias"] and r.redundant["bias"] <= np.log(fit.n_obs)
+    assert "f_0" not in r.params and r.fit.par.effects == ()
+    c, se = r.coefficients["[theta_dot>0]"], r.stderr["[theta_dot>0]"]
+    assert abs(c - STEP) < 3 * se
+    assert r.heldout_after == pytest.approx(NOISE, rel=0.05) and r.lower == 2
+
+
 def test_on_clean_data_nothing_is_accepted():
     d = _fit("clean", "tanh")
     r = refit_terms(d.fit_data_, d.family_fits_["tanh"], ["[theta_dot>0]"], floor=NOISE)
