@@ -117,6 +117,10 @@ def run(args: argparse.Namespace) -> int:
         for r, e in zip(data.runs, rms, strict=True):
             print(f"run {r.name} ({r.current:g} A): RMS {meas} error {e:.4g}")
         if extra:
-            print(f"with the open library's accepted terms: {refit.equation}")
+            left = f" (without {', '.join(refit.redundant)}, which only stood in for them)"
+            print(
+                f"with the open library's accepted terms: {refit.equation}"
+                + (left if refit.redundant else "")
+            )
         print(f"wrote {out} ({len(data.runs)} runs)")
     return 0
