@@ -38,13 +38,20 @@ def test_a_discovered_step_is_refitted_and_predicts_held_out_conditions_at_the_n
     assert r.equation() == f"F_extra = {c:.4g}*[theta_dot>0]"
 
 
-def test_an_effect_that_stood_in_for_the_term_is_left_out():
+def test_an_effect_that_stood_in_for_the_term_is_left_out(tmp_path, capsys):
     """A constant bias fitted on the step takes the step's mean (significant without the
     term); beside the term it has nothing left to explain: the refit leaves it out (a
     state-space family: its parametrization is rebuilt without the effect), keeps the
-    coefficient at the truth and predicts each drive left out at the noise."""
+    coefficient at the truth and predicts each drive left out at the noise; ``hystdisc
+    predict`` runs the refitted model without it, at the noise, and says so."""
+    import json
+
+    from hystdisc.cli import main
     from hystdisc.closing.scores import wald_chi2
+    from hystdisc.data import write_csv
     from hystdisc.fitting import OutputErrorFitter
+    from hystdisc.pipeline.record import library_section
+    from tests.closing.test_open_library import _driven, _with_step
 
     d = _fit("step", "tanh")
     base = d.family_fits_["tanh"]
@@ -58,6 +65,19 @@ def test_an_effect_that_stood_in_for_the_term_is_left_out():
     c, se = r.coefficients["[theta_dot>0]"], r.stderr["[theta_dot>0]"]
     assert abs(c - STEP) < 3 * se
     assert r.heldout_after == pytest.approx(NOISE, rel=0.05) and r.lower == 2
+    # through results.json: the refitted model (without the bias) plus the term
+    lib = regress_output_residual(d.fit_data_, fit, seed=0)
+    lib.refit = r
+    table = json.loads(d.results_.to_json())
+    table["open_library"] = library_section(lib).to_dict()
+    res = tmp_path / "results.json"
+    res.write_text(json.dumps(table))
+    csv = write_csv(_with_step(_driven(3, family="tanh")), tmp_path / "step.csv")
+    out = tmp_path / "p.csv"
+    assert main(["predict", str(res), str(csv), "-o", str(out)]) == 0
+    assert "(without bias, which only stood in for them)" in capsys.readouterr().out
+    p = np.genfromtxt(out, delimiter=",", names=True)
+    assert np.sqrt(np.mean((p["torque"] - p["torque_pred"]) ** 2)) == pytest.approx(NOISE, rel=0.1)
 
 
 def test_on_clean_data_nothing_is_accepted():
