@@ -200,6 +200,7 @@ def test_the_loop_reports_what_the_catalogue_left(tmp_path):
     write_report(d, data, html)
     text = html.read_text(encoding="utf-8")
     assert "open library" in text and "Refitted into the model by output error (F_extra" in text
+    assert f"The refitted model leaves out {', '.join(fix.redundant)}: " in text
 
 
 def test_a_play_is_mapped_to_the_catalogued_backlash_and_refitted_first(monkeypatch):
