@@ -37,7 +37,7 @@ from functools import cached_property
 import numpy as np
 
 from hystdisc.closing.refit import EFFECT_BIC_MARGIN
-from hystdisc.closing.rounds import MIN_EXCESS_SHARE, MIN_FOLDS_ALL
+from hystdisc.closing.rounds import MIN_EXCESS_SHARE, MIN_FOLDS_ALL, excess_over
 from hystdisc.closing.scores import effect_z2, significance_params
 from hystdisc.data.envelope import Envelope
 from hystdisc.errors import HystdiscError
@@ -296,7 +296,7 @@ def refit_terms(
     rss = joint.rss
     bic_after = joint.bic
     se = np.sqrt(np.clip(np.diag(joint.cov)[-p:], 0.0, None))
-    excess = fit.rss - fit.n_obs * floor**2
+    excess = excess_over(fit, floor)
     share = (fit.rss - rss) / excess if excess > 0 else 0.0
     moved = dataclasses.replace(
         fit, par=fitter.par, x=v[:npar], nuisance=v[npar:].reshape(fit.nuisance.shape)

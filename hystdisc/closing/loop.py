@@ -89,7 +89,14 @@ from hystdisc.closing.residual import (
     assess_residual,
     natural_frequency,
 )
-from hystdisc.closing.rounds import MIN_EXCESS_SHARE, Restart, Round, refit_queue, snapshot
+from hystdisc.closing.rounds import (
+    MIN_EXCESS_SHARE,
+    Restart,
+    Round,
+    excess_over,
+    refit_queue,
+    snapshot,
+)
 from hystdisc.closing.scores import EffectScore, score_effects, wald_chi2, with_effects
 from hystdisc.closing.structural import score_structural
 from hystdisc.data.envelope import Envelope
@@ -376,7 +383,7 @@ def augment(
             rejected.add(verdict.name)
             verdict.reject()
             if verdict.share_only:
-                excess = current.rss - current.n_obs * noise_std**2
+                excess = excess_over(current, noise_std)
                 share_gain[verdict.name] = verdict.excess_share * max(excess, 0.0)
         if w is not None:
             new, verdict = w
@@ -386,7 +393,7 @@ def augment(
             fits[frozenset(out.effects)] = new
             current = _backward(data, new, out, max_nfev, heldout, say, fits)
             # the excess shrank: a gain too small a share of the old one may count now
-            excess = current.rss - current.n_obs * noise_std**2
+            excess = excess_over(current, noise_std)
             again = [n for n, g in share_gain.items() if g >= MIN_EXCESS_SHARE * excess > 0]
             if again:
                 say(f"closing the loop: {', '.join(again)} tried again (the excess shrank)")

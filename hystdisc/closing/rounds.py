@@ -56,6 +56,19 @@ MIN_FOLDS_ALL = 4
 Restart = Callable[[str, dict, "FamilyParametrization"], "dict | None"]
 
 
+def excess_over(fit: OEFit, floor: float) -> float:
+    """The residual's excess over the measurement's ``floor`` (noise or repeatability):
+    ``RSS - N floor^2``, what an effect's share (:data:`MIN_EXCESS_SHARE`) is a share of.
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace
+    >>> excess_over(SimpleNamespace(rss=5.0, n_obs=100), 0.2)
+    1.0
+    """
+    return float(fit.rss - fit.n_obs * floor**2)
+
+
 def fold_rms(data: FitData, fit: OEFit) -> list[float] | None:
     """The held-out RMS of each fold of ``data`` (:meth:`FitData.folds`) from ``fit``'s
     held-out predictions (None without them)."""
@@ -364,7 +377,7 @@ class Round:
         bad = EFFECTS[s.name].inadmissible(s.estimate)
         verdict.wants = ", ".join(f"{k} = {s.estimate[k]:.3g}" for k in bad) or None
         # share of the excess over the noise that the effect removes
-        excess = cur.rss - cur.n_obs * self.noise_std**2
+        excess = excess_over(cur, self.noise_std)
         gain = cur.rss - new.rss if ok else 0.0
         share = gain / excess if excess > 0 else 1.0
         verdict.excess_share = float(share)
