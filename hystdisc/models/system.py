@@ -316,7 +316,7 @@ class FamilySystem(StateSpaceModel):
         if self.structure is not None:
             self.states = family.mount_states
             self.rate, self.observe = family.mount_rate, family.mount_output
-            self.rate_jac = self.observe_grad = None  # its Jacobian is taken by differences
+            self.rate_jac, self.observe_grad = family.mount_rate_jac, family.mount_output_grad
 
     def _structural(self, family, exp):
         """The one structural effect among the effects (None: none), checked buildable."""

@@ -55,8 +55,10 @@ from hystdisc.models.compiled import (
     N_BASE,
     TERM_SIZE,
     base_coefficients,
+    rate_grad,
     term_torque,
     term_vector,
+    torque_grad,
     vector_rate,
 )
 from hystdisc.models.effects import Effect, Structure
@@ -173,6 +175,68 @@ def _terms_rate(x, u, p, dx):
     dx[4] = (T - p[_MW + 1] * y - p[_MW + 2] * v) / p[_MW]
 
 
+# ---- partial derivatives, for the exact sensitivities (hystdisc.simulation.sensitivity_ode);
+# work: dT/dc of the damper (N_BASE), dR/d(b, n) of its rate (6, from _WR), dR/dc of the
+# rig (N_BASE, from _WG)
+_WR = N_BASE
+_WG = N_BASE + 6
+
+
+@numba.njit(cache=True, inline="always")
+def _hysteresis_rows(jp, i, work):
+    """Row ``i`` (``z' = R(w, z)``) of ``d rate / d p``: the rate's coefficients and
+    exponent (the term vector's hysteresis side), from ``work[_WR : _WR + 6]``."""
+    for q in range(6):
+        jp[i, N_BASE + q] = work[_WR + q]
+
+
+@numba.njit(cache=True, nogil=True)
+def _terms_rate_jac(x, u, p, need, jx, jp, work):
+    th, w, z, y, v = x[0], x[1], x[2], x[3], x[4]
+    eps, mw, kw, cw = p[_EPS2], p[_MW], p[_MW + 1], p[_MW + 2]
+    tr, tw, tz = torque_grad(p[:N_BASE], th - y, w - v, z, eps, need[:N_BASE], work[:N_BASE])
+    gth, gw, _ = torque_grad(
+        p[_RIG:_EPS2], th, w, 0.0, eps, need[_RIG:_EPS2], work[_WG : _WG + N_BASE]
+    )
+    rw, rz = rate_grad(
+        p[N_BASE : TERM_SIZE - 1], p[TERM_SIZE - 1], w - v, z, need[N_BASE:TERM_SIZE],
+        work[_WR : _WR + 6],
+    )  # fmt: skip
+    force = term_torque(p[:N_BASE], th - y, w - v, z, eps)
+    # theta'' = -R(theta, w) - T(theta - y, w - v, z)
+    jx[0, 1] = 1.0
+    jx[1, 0] = -(gth + tr)
+    jx[1, 1] = -(gw + tw)
+    jx[1, 2] = -tz
+    jx[1, 3] = tr
+    jx[1, 4] = tw
+    for i in range(N_BASE):
+        jp[1, i] = -work[i]
+        jp[1, _RIG + i] = -work[_WG + i]
+    # z' = R(w - v, z)
+    jx[2, 1] = rw
+    jx[2, 2] = rz
+    jx[2, 4] = -rw
+    _hysteresis_rows(jp, 2, work)
+    # m_w y'' = T - k_w y - c_w v
+    jx[3, 4] = 1.0
+    jx[4, 0] = tr / mw
+    jx[4, 1] = tw / mw
+    jx[4, 2] = tz / mw
+    jx[4, 3] = -(tr + kw) / mw
+    jx[4, 4] = -(tw + cw) / mw
+    for i in range(N_BASE):
+        jp[4, i] = work[i] / mw
+    jp[4, _MW] = -(force - kw * y - cw * v) / (mw * mw)
+    jp[4, _MW + 1] = -y / mw
+    jp[4, _MW + 2] = -v / mw
+
+
+@numba.njit(cache=True, nogil=True)
+def _angle_grad(x, u, p, need, gx, gp, work):
+    gx[0] = 1.0
+
+
 class TermsOnCompliantWheel(StateSpaceModel):
     """A model in term form between the SAS beam and a compliant wheel (release).
 
@@ -201,6 +265,8 @@ class TermsOnCompliantWheel(StateSpaceModel):
     output = "theta"
     rate = staticmethod(_terms_rate)
     observe = staticmethod(_output)
+    rate_jac = staticmethod(_terms_rate_jac)
+    observe_grad = staticmethod(_angle_grad)
     params = WHEEL_PARAMS
 
     def __init__(self, terms: TermModel) -> None:
@@ -249,6 +315,41 @@ def _mount_output(x, u, p):
     return term_torque(p[:N_BASE], u[0] - x[0], x[1], x[2], p[_EPS3])
 
 
+@numba.njit(cache=True, nogil=True)
+def _mount_rate_jac(x, u, p, need, jx, jp, work):
+    d, v, z = x[0], x[1], x[2]
+    eps, mw, kw, cw = p[_EPS3], p[_EPS3 + 1], p[_EPS3 + 2], p[_EPS3 + 3]
+    # T at the damper's end y = x - d: its partial in d is -dT/dy
+    ty, tv, tz = torque_grad(p[:N_BASE], u[0] - d, v, z, eps, need[:N_BASE], work[:N_BASE])
+    rw, rz = rate_grad(
+        p[N_BASE : TERM_SIZE - 1], p[TERM_SIZE - 1], v, z, need[N_BASE:TERM_SIZE],
+        work[_WR : _WR + 6],
+    )  # fmt: skip
+    force = term_torque(p[:N_BASE], u[0] - d, v, z, eps)
+    jx[0, 1] = -1.0
+    # m_w y'' = k_w d + c_w (x' - v) - T
+    jx[1, 0] = (kw + ty) / mw
+    jx[1, 1] = -(cw + tv) / mw
+    jx[1, 2] = -tz / mw
+    for i in range(N_BASE):
+        jp[1, i] = -work[i] / mw
+    jp[1, _EPS3 + 1] = -(kw * d + cw * (u[1] - v) - force) / (mw * mw)
+    jp[1, _EPS3 + 2] = d / mw
+    jp[1, _EPS3 + 3] = (u[1] - v) / mw
+    jx[2, 1] = rw
+    jx[2, 2] = rz
+    _hysteresis_rows(jp, 2, work)
+
+
+@numba.njit(cache=True, nogil=True)
+def _mount_output_grad(x, u, p, need, gx, gp, work):
+    d, v, z = x[0], x[1], x[2]
+    ty, tv, tz = torque_grad(p[:N_BASE], u[0] - d, v, z, p[_EPS3], need[:N_BASE], gp[:N_BASE])
+    gx[0] = -ty
+    gx[1] = tv
+    gx[2] = tz
+
+
 class TermsOnCompliantMount(StateSpaceModel):
     """A model in term form behind a compliant mount (driven experiments).
 
@@ -278,6 +379,8 @@ class TermsOnCompliantMount(StateSpaceModel):
     output = "torque"
     rate = staticmethod(_mount_rate)
     observe = staticmethod(_mount_output)
+    rate_jac = staticmethod(_mount_rate_jac)
+    observe_grad = staticmethod(_mount_output_grad)
     params = WHEEL_PARAMS
 
     def __init__(self, terms: TermModel) -> None:

@@ -8,7 +8,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from hystdisc.fitting import FamilySystemParametrization
+from hystdisc.fitting import FamilySystemParametrization, family_parametrization
 from hystdisc.fitting import system_jacobian as sj
 from hystdisc.fitting.output_error import OutputErrorFitter
 from hystdisc.fitting.system_sensitivity import exact_applies, system_exact_jacobian
@@ -181,6 +181,7 @@ def test_a_batch_on_threads_is_the_batch_in_turn_to_the_bit():
         ("spencer", SPENCER, "driven", ("shear_thinning",)),
         ("spencer", SPENCER, "driven", ("current_bias",)),
         ("spencer", SPENCER, "driven", ("channel_delay",)),
+        ("spencer", SPENCER, "driven", ("series_compliance",)),
         ("spencer", {k: v for k, v in SPENCER.items() if k != "k1"}, "release", ()),
         ("tanh", TANH, "driven", ("coulomb",)),
     ],
@@ -197,6 +198,7 @@ def test_exact_system_jacobian_matches_a_tight_central_difference(
     rng = np.random.default_rng(7)
     start = {k: v * rng.uniform(0.7, 1.3) for k, v in truth.items()}
     start.update({"c_st": 0.3, "m": 0.7, "f_c": 0.2, "tau_d": 0.0023})  # off the sample grid
+    start.update({"k_w": 800.0, "c_w": 2.0, "m_w": 0.05})  # a mount at 20 Hz
     par = FamilySystemParametrization(family, experiment, start, effects)
     fitter = OutputErrorFitter(data, par)
     assert fitter.exact_system
@@ -211,6 +213,40 @@ def test_exact_system_jacobian_matches_a_tight_central_difference(
     # the forward differences the fit took before, at its own tolerance (1e-10)
     fd = OutputErrorFitter(data, par, jacobian_mode="forward").jacobian(v)
     assert _column_errors(fd, ref).max() > _column_errors(J, ref).max()
+
+
+@pytest.mark.parametrize(
+    ("family", "experiment", "effects", "wheel"),
+    [
+        ("bouc-wen-std", "driven", ("series_compliance",), (800.0, 2.0, 0.05)),
+        ("bouc-wen-std", "driven", ("series_compliance", "shear_thinning", "coulomb"),
+         (800.0, 2.0, 0.05)),
+        ("dahl", "release", ("series_compliance",), (900.0, 3.0, 0.3)),
+        ("bouc-wen", "release", ("series_compliance", "coulomb", "cubic_stiffness"),
+         (900.0, 3.0, 0.3)),
+    ],
+)  # fmt: skip
+def test_a_term_model_on_a_compliant_mount_or_wheel_has_the_exact_jacobian(
+    family, experiment, effects, wheel
+):
+    """The structural effect ``series_compliance`` around a model in term form (the
+    damper behind a mount on a driven test; the beam on a wheel on a release one; with
+    other effects' terms across the damper and on the beam): the integrator's exact
+    sensitivities, against central differences of runs integrated 100 times tighter."""
+    truth = dict(Model(family).params)
+    data = _data(family, truth, experiment, noise=0.01 if experiment == "driven" else 1e-3)
+    start = {k: v * 1.1 for k, v in truth.items()}
+    start.update(dict(zip(("k_w", "c_w", "m_w"), wheel, strict=True)))
+    start.update({"c_st": 0.3, "m": 0.7, "f_c": 0.2, "k_3": 100.0})
+    par = family_parametrization(family, experiment, start, effects)
+    fitter = OutputErrorFitter(data, par)
+    assert fitter.exact_system
+    v = np.concatenate([par.x0, data.nuisance_start(fitter.state)])
+    x, nu = v[: par.x0.size], v[par.x0.size :].reshape(data.n_runs, -1)
+    J = system_exact_jacobian(data, par, x, nu, fitter.masks, 1e-6)
+    ref = _reference(fitter, v)
+    assert J.shape == ref.shape
+    assert _column_errors(J, ref).max() < 1e-3
 
 
 def test_the_output_is_the_integrators_to_the_bit():

@@ -302,6 +302,10 @@ class SystemFamily(Family):
     mount_states: tuple[str, ...] | None = None
     mount_rate = None
     mount_output = None
+    #: The compiled partial derivatives of ``mount_rate``/``mount_output`` (None: the
+    #: mounted model's Jacobian is taken by differences).
+    mount_rate_jac = None
+    mount_output_grad = None
 
     def system(
         self,

@@ -228,6 +228,60 @@ def _mech_output_grad(x, u, p, need, gx, gp, work):
     gx[0] = 1.0
 
 
+@numba.njit(cache=True, nogil=True)
+def _mount_rate_jac(x, u, p, need, jx, jp, work):
+    m, yd, d, z = x[0], x[1], x[2], x[3]
+    y = u[0] - m
+    mw, kw, cw = p[_MW], p[_KW], p[_CW]
+    node, nd, nz, nv = _node_grad(p, yd, d, z, work)
+    c1 = p[_C1]
+    ty, tv, tz = torque_grad(p[:N_BASE], y, yd, z, p[EPS_AT], need[:N_BASE], work[:N_BASE])
+    rw, rz = rate_grad(p[_B:_N], p[_N], yd - node, z, need[_B : _N + 1], work[_WR : _WR + 6])
+    force = c1 * node + p[_K1] * y + term_torque(p[:N_BASE], y, yd, z, p[EPS_AT])
+    jx[0, 1] = -1.0
+    # m_w y'' = k_w m + c_w (x' - y') - F(y, y', d, z), y = x - m
+    jx[1, 0] = (kw + p[_K1] + ty) / mw
+    jx[1, 1] = -(cw + c1 * nv + tv) / mw
+    jx[1, 2] = -c1 * nd / mw
+    jx[1, 3] = -(c1 * nz + tz) / mw
+    for i in range(N_BASE):
+        jp[1, i] = -work[i] / mw
+    for i in range(4):
+        jp[1, _BLOCK[i]] = -c1 * work[_WN + i] / mw
+    jp[1, _C1] -= node / mw
+    jp[1, _K1] = -y / mw
+    jp[1, _MW] = -(kw * m + cw * (u[1] - yd) - force) / (mw * mw)
+    jp[1, _KW] = m / mw
+    jp[1, _CW] = (u[1] - yd) / mw
+    # the stretch rate y' - node and z' = R(y' - node, z)
+    jx[2, 1] = 1.0 - nv
+    jx[2, 2] = -nd
+    jx[2, 3] = -nz
+    jx[3, 1] = rw * (1.0 - nv)
+    jx[3, 2] = -rw * nd
+    jx[3, 3] = rz - rw * nz
+    _stretch_rows(jp, 2, rw, work)
+
+
+@numba.njit(cache=True, nogil=True)
+def _mount_output_grad(x, u, p, need, gx, gp, work):
+    m, yd, d, z = x[0], x[1], x[2], x[3]
+    y = u[0] - m
+    node, nd, nz, nv = _node_grad(p, yd, d, z, work)
+    c1 = p[_C1]
+    ty, tv, tz = torque_grad(p[:N_BASE], y, yd, z, p[EPS_AT], need[:N_BASE], work[:N_BASE])
+    gx[0] = -(p[_K1] + ty)
+    gx[1] = c1 * nv + tv
+    gx[2] = c1 * nd
+    gx[3] = c1 * nz + tz
+    for i in range(N_BASE):
+        gp[i] = work[i]
+    for i in range(4):
+        gp[_BLOCK[i]] = c1 * work[_WN + i]
+    gp[_C1] += node
+    gp[_K1] = y
+
+
 _PARAMS = """
     # name    unit           lower  upper  default  doc
     alpha_a   N*m            0      BIG    0.5      passive hysteretic torque
@@ -286,6 +340,8 @@ class Spencer(SystemFamily):
     mount_states = ("m", "y_dot", "d", "z")
     mount_rate = staticmethod(_mount_rate)
     mount_output = staticmethod(_mount_output)
+    mount_rate_jac = staticmethod(_mount_rate_jac)
+    mount_output_grad = staticmethod(_mount_output_grad)
     driven_rate_jac = staticmethod(_driven_rate_jac)
     driven_output_grad = staticmethod(_driven_output_grad)
     mech_rate_jac = staticmethod(_mech_rate_jac)
