@@ -155,9 +155,15 @@ def fit_residuals(disc, key: str | None = None) -> list[np.ndarray]:
 
 
 def _simulated_damper(fit, fd, runs: Sequence[int]) -> list[Any]:
-    """Simulated theta, theta_dot and damper torque of release/forced runs (SimResults)."""
+    """Simulated theta, theta_dot and damper torque of release/forced runs (SimResults);
+    None for a run that diverged, and for every run of a model with no term form (a
+    state-space family, or a structural effect's beam on a wheel: its damper acts on the
+    motion relative to the wheel, which these loops do not draw)."""
+    from hystdisc.fitting import SystemParametrization
     from hystdisc.simulation import simulate_mech
 
+    if isinstance(fit.par, SystemParametrization):
+        return [None] * len(runs)
     nu = np.asarray(fit.nuisance)
     kw: dict[str, Any] = {}
     if get_experiment(fd.experiment).has_input:

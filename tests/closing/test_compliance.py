@@ -115,3 +115,16 @@ def test_a_mild_wheel_under_another_family_is_diagnosed_by_its_screened_starts(t
         assert ci[k][0] <= v <= ci[k][1], k
     assert loop.fit.heldout_rms < 1.03 * NOISE < loop.base.heldout_rms
     assert not loop.unexplained
+
+
+def test_the_report_draws_the_loops_of_a_run_that_found_the_wheel(wheel_fit):
+    """``hystdisc discover`` draws every fit's hysteresis loop for its report: the final
+    model (the beam on the wheel) has no term form, and asking it for one ended the
+    command with an error after the whole discovery. Its loop is left out; the family's
+    is drawn."""
+    from hystdisc.report.signals import model_loops
+
+    loops = model_loops(wheel_fit, runs=[0, 4])
+    kinds = [lp["kind"] for lp in loops]
+    assert kinds.count("data") == 2 and kinds.count("dahl") == 2
+    assert "final" not in kinds
