@@ -174,6 +174,20 @@ def test_a_batch_on_threads_is_the_batch_in_turn_to_the_bit():
         assert np.array_equal(out[n][0], out[1][0]) and np.array_equal(out[n][1], out[1][1])
 
 
+def _exact_column_errors(data: FitData, par) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The column errors of the exact Jacobian of ``par`` at its start against
+    :func:`_reference`, that point (parameters, then each run's initial states) and the
+    reference."""
+    fitter = OutputErrorFitter(data, par)
+    assert fitter.exact_system
+    v = np.concatenate([par.x0, data.nuisance_start(fitter.state)])
+    x, nu = v[: par.x0.size], v[par.x0.size :].reshape(data.n_runs, -1)
+    J = system_exact_jacobian(data, par, x, nu, fitter.masks, 1e-6)
+    ref = _reference(fitter, v)
+    assert J.shape == ref.shape
+    return _column_errors(J, ref), v, ref
+
+
 @pytest.mark.parametrize(
     ("family", "truth", "experiment", "effects"),
     [
@@ -200,19 +214,13 @@ def test_exact_system_jacobian_matches_a_tight_central_difference(
     start.update({"c_st": 0.3, "m": 0.7, "f_c": 0.2, "tau_d": 0.0023})  # off the sample grid
     start.update({"k_w": 800.0, "c_w": 2.0, "m_w": 0.05})  # a mount at 20 Hz
     par = FamilySystemParametrization(family, experiment, start, effects)
-    fitter = OutputErrorFitter(data, par)
-    assert fitter.exact_system
     terms = OutputErrorFitter(data, par, jacobian_mode="terms")  # the sensitivities off
     assert not (terms.exact_system or terms.lockstep or terms.exact)
-    v = np.concatenate([par.x0, data.nuisance_start(fitter.state)])
-    x, nu = v[: par.x0.size], v[par.x0.size :].reshape(data.n_runs, -1)
-    J = system_exact_jacobian(data, par, x, nu, fitter.masks, 1e-6)
-    ref = _reference(fitter, v)
-    assert J.shape == ref.shape
-    assert _column_errors(J, ref).max() < 1e-3
+    errors, v, ref = _exact_column_errors(data, par)
+    assert errors.max() < 1e-3
     # the forward differences the fit took before, at its own tolerance (1e-10)
     fd = OutputErrorFitter(data, par, jacobian_mode="forward").jacobian(v)
-    assert _column_errors(fd, ref).max() > _column_errors(J, ref).max()
+    assert _column_errors(fd, ref).max() > errors.max()
 
 
 @pytest.mark.parametrize(
@@ -239,14 +247,7 @@ def test_a_term_model_on_a_compliant_mount_or_wheel_has_the_exact_jacobian(
     start.update(dict(zip(("k_w", "c_w", "m_w"), wheel, strict=True)))
     start.update({"c_st": 0.3, "m": 0.7, "f_c": 0.2, "k_3": 100.0})
     par = family_parametrization(family, experiment, start, effects)
-    fitter = OutputErrorFitter(data, par)
-    assert fitter.exact_system
-    v = np.concatenate([par.x0, data.nuisance_start(fitter.state)])
-    x, nu = v[: par.x0.size], v[par.x0.size :].reshape(data.n_runs, -1)
-    J = system_exact_jacobian(data, par, x, nu, fitter.masks, 1e-6)
-    ref = _reference(fitter, v)
-    assert J.shape == ref.shape
-    assert _column_errors(J, ref).max() < 1e-3
+    assert _exact_column_errors(data, par)[0].max() < 1e-3
 
 
 def test_the_output_is_the_integrators_to_the_bit():

@@ -162,6 +162,29 @@ def _stretch_rows(jp, i, rw, work):
         jp[i + 1, _B + q] = work[_WR + q]
 
 
+@numba.njit(cache=True, inline="always")
+def _force_row(row, den, c1, node, work):
+    """``-dF/dp / den`` into ``row`` (its entries in the term coefficients and in Spencer's
+    block, ``k1``'s aside), from the partials in ``work``; ``den = -1``: ``dF/dp`` itself."""
+    for i in range(N_BASE):
+        row[i] = -work[i] / den
+    for i in range(4):
+        row[_BLOCK[i]] = -c1 * work[_WN + i] / den
+    row[_C1] -= node / den
+
+
+@numba.njit(cache=True, inline="always")
+def _node_state_rows(jx, rw, rz, nv, nd, nz):
+    """Rows 2 (the stretch rate ``v - node``) and 3 (``z'``) of ``d rate / d x`` for the
+    states ``(., v, d, z)`` of a rig or a mount."""
+    jx[2, 1] = 1.0 - nv
+    jx[2, 2] = -nd
+    jx[2, 3] = -nz
+    jx[3, 1] = rw * (1.0 - nv)
+    jx[3, 2] = -rw * nd
+    jx[3, 3] = rz - rw * nz
+
+
 @numba.njit(cache=True, nogil=True)
 def _driven_rate_jac(x, u, p, need, jx, jp, work):
     d, z = x[0], x[1]
@@ -182,11 +205,7 @@ def _driven_output_grad(x, u, p, need, gx, gp, work):
     _, _, tz = torque_grad(p[:N_BASE], u[0], u[1], z, p[EPS_AT], need[:N_BASE], work[:N_BASE])
     gx[0] = c1 * nd
     gx[1] = c1 * nz + tz
-    for i in range(N_BASE):
-        gp[i] = work[i]
-    for i in range(4):
-        gp[_BLOCK[i]] = c1 * work[_WN + i]
-    gp[_C1] += node
+    _force_row(gp, -1.0, c1, node, work)
     gp[_K1] = u[0]
 
 
@@ -208,18 +227,9 @@ def _mech_rate_jac(x, u, p, need, jx, jp, work):
     jp[1, KS_AT] = -th / J
     jp[1, J_AT] = -(uu - p[KS_AT] * th - force) / (J * J)
     jp[1, _K1] = -th / J
-    for i in range(N_BASE):
-        jp[1, i] = -work[i] / J
-    for i in range(4):
-        jp[1, _BLOCK[i]] = -c1 * work[_WN + i] / J
-    jp[1, _C1] -= node / J
+    _force_row(jp[1], J, c1, node, work)
     # the stretch rate w - node and z' = R(w - node, z)
-    jx[2, 1] = 1.0 - nv
-    jx[2, 2] = -nd
-    jx[2, 3] = -nz
-    jx[3, 1] = rw * (1.0 - nv)
-    jx[3, 2] = -rw * nd
-    jx[3, 3] = rz - rw * nz
+    _node_state_rows(jx, rw, rz, nv, nd, nz)
     _stretch_rows(jp, 2, rw, work)
 
 
@@ -244,22 +254,13 @@ def _mount_rate_jac(x, u, p, need, jx, jp, work):
     jx[1, 1] = -(cw + c1 * nv + tv) / mw
     jx[1, 2] = -c1 * nd / mw
     jx[1, 3] = -(c1 * nz + tz) / mw
-    for i in range(N_BASE):
-        jp[1, i] = -work[i] / mw
-    for i in range(4):
-        jp[1, _BLOCK[i]] = -c1 * work[_WN + i] / mw
-    jp[1, _C1] -= node / mw
+    _force_row(jp[1], mw, c1, node, work)
     jp[1, _K1] = -y / mw
     jp[1, _MW] = -(kw * m + cw * (u[1] - yd) - force) / (mw * mw)
     jp[1, _KW] = m / mw
     jp[1, _CW] = (u[1] - yd) / mw
     # the stretch rate y' - node and z' = R(y' - node, z)
-    jx[2, 1] = 1.0 - nv
-    jx[2, 2] = -nd
-    jx[2, 3] = -nz
-    jx[3, 1] = rw * (1.0 - nv)
-    jx[3, 2] = -rw * nd
-    jx[3, 3] = rz - rw * nz
+    _node_state_rows(jx, rw, rz, nv, nd, nz)
     _stretch_rows(jp, 2, rw, work)
 
 
@@ -274,11 +275,7 @@ def _mount_output_grad(x, u, p, need, gx, gp, work):
     gx[1] = c1 * nv + tv
     gx[2] = c1 * nd
     gx[3] = c1 * nz + tz
-    for i in range(N_BASE):
-        gp[i] = work[i]
-    for i in range(4):
-        gp[_BLOCK[i]] = c1 * work[_WN + i]
-    gp[_C1] += node
+    _force_row(gp, -1.0, c1, node, work)
     gp[_K1] = y
 
 
