@@ -107,7 +107,9 @@ def candidate_effects(fit: OEFit, data: FitData) -> tuple[list[str], list[Effect
         reason = None
         if name in par.effects:
             continue
-        if system and eff.scaled:  # a share of a torque term the family does not have
+        # a share of a torque term the family does not have (nor its compiled force)
+        carried = system and name in fam.scaled_effects  # its form is the family's own
+        if system and eff.scaled and not carried:
             reason = scaled_effect_reason(fam.name, eff)
         # a state-space family's own laws make its damping and yield depend on the
         # current; a force bias's law (current_bias: the term ``i``) is no law of its own
@@ -136,7 +138,7 @@ def candidate_effects(fit: OEFit, data: FitData) -> tuple[list[str], list[Effect
             reason = "needs two current levels or more, the data have one"
         elif all(t in have for t in eff.terms):
             reason = f"{fam.name} already has {', '.join(eff.terms)}"
-        elif any(t in Z_TORQUE_TERMS for t in eff.terms) and not has_state:
+        elif any(t in Z_TORQUE_TERMS for t in eff.terms) and not has_state and not carried:
             reason = f"{fam.name} has no hysteretic state z"
         elif any(t.startswith("i^2") for t in eff.terms) and levels < 3:
             reason = f"needs three current levels or more, the data have {levels}"

@@ -167,6 +167,17 @@ class Effect:
     play_param: str = ""
     scaled: tuple[tuple[str, str, str], ...] = ()
 
+    @property
+    def shares(self) -> tuple[str, ...]:
+        """The parameters that are shares of a force of the model (:attr:`scaled`).
+
+        Examples
+        --------
+        >>> ASYMMETRIC_YIELD.shares, COULOMB.shares
+        (('r_y',), ())
+        """
+        return tuple(name for name, _, _ in self.scaled)
+
     def has_role(self, role: str) -> bool:
         """The effect has ``role`` (one of :data:`ROLES`).
 
@@ -250,13 +261,14 @@ def apply_effects(
 
 def scaled_effect_reason(family: str, effect: Effect) -> str:
     """Why ``effect``, which scales torque terms of the model (:attr:`Effect.scaled`),
-    has no form on the state-space family ``family``: its force is not a sum of torque
-    terms, so the share would be of nothing and the effect zero.
+    has no form on the state-space family ``family`` (one whose compiled force does not
+    carry it): its force is not a sum of torque terms, so the share would be of nothing
+    and the effect zero.
 
     Examples
     --------
-    >>> scaled_effect_reason("spencer", ASYMMETRIC_YIELD)
-    'spencer is a state-space family: its force has no z term for asymmetric_yield to scale (the form on it is not built)'
+    >>> scaled_effect_reason("spencer", ASYMMETRIC_DAMPING)
+    'spencer is a state-space family: its force has no theta_dot term for asymmetric_damping to scale (the form on it is not built)'
     """
     bases = ", ".join(dict.fromkeys(base for _, _, base in effect.scaled))
     return (
@@ -265,20 +277,21 @@ def scaled_effect_reason(family: str, effect: Effect) -> str:
     )
 
 
-def scaled_effect_message(family: str, effect: Effect, term_families: Iterable[str]) -> str:
+def scaled_effect_message(family: str, effect: Effect, families: Iterable[str]) -> str:
     """The one-line error for ``effect`` asked of the state-space family ``family``
-    (:func:`scaled_effect_reason`), with the fix: one of ``term_families``.
+    (:func:`scaled_effect_reason`), with the fix: one of ``families`` (those that carry
+    it: the term families and the state-space families with its form).
 
     Examples
     --------
-    >>> msg = scaled_effect_message("tanh", ASYMMETRIC_DAMPING, ["dahl", "lugre"])
-    >>> msg.startswith("tanh: asymmetric_damping would be zero"), msg.endswith("(dahl, lugre)")
+    >>> msg = scaled_effect_message("spencer", ASYMMETRIC_DAMPING, ["dahl", "tanh"])
+    >>> msg.startswith("spencer: asymmetric_damping would be zero"), msg.endswith("(dahl, tanh)")
     (True, True)
     """
     return (
         f"{family}: {effect.name} would be zero: {scaled_effect_reason(family, effect)}; "
-        f"fix: leave {effect.name} out, or use a family in term form "
-        f"({', '.join(term_families)})"
+        f"fix: leave {effect.name} out, or use a family that carries it "
+        f"({', '.join(families)})"
     )
 
 
@@ -494,7 +507,9 @@ sign with the velocity: ``c(i) theta_dot (1 + r_c sign(theta_dot))``. The dampin
 admissible ``|r_c| <= 1`` whatever the family's ``c`` (``|theta_dot|`` does no net work
 over a symmetric cycle, so the energy check of the admissibility could not catch a
 negative damping in one direction: the bounds do). A state-space family's damping is not
-in the term form, so the effect adds nothing to one."""
+in the term form: the effect exists on one only where the family's own compiled force
+carries it (:attr:`~hystdisc.models.families.base.SystemFamily.scaled_effects`: the tanh
+family's ``c(i) x' (1 + r_c sign(x'))``)."""
 
 
 #: The term of :data:`ASYMMETRIC_YIELD`: ``|z|``, a hysteretic torque even in ``z`` (with
@@ -541,4 +556,7 @@ non-negative for the admissible ``|r_y| <= 1`` whatever the family's ``alpha`` (
 both branches alike at every state; this one only where ``z`` is away from 0, so the two
 differ at the velocity's reversals. Families without a hysteretic state (Bingham, whose
 yield is ``sign(theta_dot)``) do not carry it; a state-space family's hysteretic torque is
-not in the term form, so the effect adds nothing to one."""
+not in the term form: the effect exists on one only where the family's own compiled force
+carries it (:attr:`~hystdisc.models.families.base.SystemFamily.scaled_effects`: Spencer's
+``alpha(i) z (1 + r_y sign(z))`` at the internal node, the tanh family's yield
+``alpha(i) h (1 + r_y sign(h))`` with ``h`` its hyperbolic tangent)."""

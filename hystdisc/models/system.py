@@ -49,7 +49,32 @@ from hystdisc.models.compiled import (
 from hystdisc.models.effects import apply_effects, scaled_effect_message
 from hystdisc.models.params import RIG_PARAMS, Param, check_params
 from hystdisc.models.terms import SIGN_EPS, TermModel
-from hystdisc.registry import effect_names, get_effect, get_experiment, term_family_names
+from hystdisc.registry import effect_names, family_names, get_effect, get_experiment, get_family
+
+
+def carries(family: str) -> tuple[str, ...]:
+    """The effects that scale a force of the model (:attr:`~hystdisc.models.effects.Effect.scaled`)
+    which the family ``family`` carries: a term family those whose scaled terms it has, a
+    state-space one those of its
+    :attr:`~hystdisc.models.families.base.SystemFamily.scaled_effects`.
+
+    Examples
+    --------
+    >>> carries("dahl"), carries("bingham"), carries("spencer")
+    (('asymmetric_damping', 'asymmetric_yield'), ('asymmetric_damping',), ('asymmetric_yield',))
+    """
+    fam = get_family(family)
+    out = []
+    for name in effect_names():
+        eff = get_effect(name)
+        if not eff.scaled:
+            continue
+        if fam.is_system:
+            if name in fam.scaled_effects:
+                out.append(name)
+        elif all(base in fam.torque_terms for _, _, base in eff.scaled):
+            out.append(name)
+    return tuple(out)
 
 
 def delay_params() -> tuple[str, ...]:
@@ -289,8 +314,11 @@ class FamilySystem(StateSpaceModel):
         self.effects = tuple(get_effect(e).name for e in effects)
         self._effects = [get_effect(e) for e in self.effects]
         for eff in self._effects:
-            if eff.scaled:  # its share is of a torque term this family does not have
-                raise HystdiscError(scaled_effect_message(family.name, eff, term_family_names()))
+            # its share is of a torque term this family does not have, unless the family's
+            # own compiled force carries it (its block reads the share)
+            if eff.scaled and eff.name not in family.scaled_effects:
+                carriers = [n for n in family_names() if eff.name in carries(n)]
+                raise HystdiscError(scaled_effect_message(family.name, eff, carriers))
         exp = self.experiment
         self.name = f"{family.name} ({exp.name})"
         fam_params = tuple(p for p in family.params if p.name not in family.mech_drop)

@@ -164,17 +164,13 @@ def test_refuses_to_overwrite(tmp_path, capsys):
         # a share of a torque term a state-space family does not have: zero, not data
         (
             "--model spencer --experiment driven --drive 0.2@0.5 "
-            "--effect asymmetric_yield:r_y=0.3".split(),
+            "--effect asymmetric_damping:r_c=0.3".split(),
             [
-                "spencer: asymmetric_yield would be zero: spencer is a state-space family: its "
-                "force has no z term for asymmetric_yield to scale (the form on it is not "
-                "built); fix: leave asymmetric_yield out, or use a family in term form "
-                "(bingham, dahl, lugre, bouc-wen, bouc-wen-std)"
+                "spencer: asymmetric_damping would be zero: spencer is a state-space family: "
+                "its force has no theta_dot term for asymmetric_damping to scale (the form on "
+                "it is not built); fix: leave asymmetric_damping out, or use a family that "
+                "carries it (bingham, dahl, lugre, bouc-wen, bouc-wen-std, tanh)"
             ],
-        ),
-        (
-            "--model tanh --experiment driven --drive 0.2@0.5 --effect asymmetric_damping".split(),
-            ["tanh: asymmetric_damping would be zero", "no theta_dot term"],
         ),
         (["--model", "dahl", "--duration"], ["expected one argument"]),
         (["--set", "k_s=1"], ["no model given"]),

@@ -198,21 +198,28 @@ def _exact_column_errors(data: FitData, par) -> tuple[np.ndarray, np.ndarray, np
         ("spencer", SPENCER, "driven", ("series_compliance",)),
         ("spencer", {k: v for k, v in SPENCER.items() if k != "k1"}, "release", ()),
         ("tanh", TANH, "driven", ("coulomb",)),
+        # the shares their compiled forces carry (r_y at the node; r_c, r_y on tanh)
+        ("spencer", SPENCER, "driven", ("asymmetric_yield",)),
+        ("spencer", SPENCER, "driven", ("asymmetric_yield", "series_compliance")),
+        ("spencer", {k: v for k, v in SPENCER.items() if k != "k1"}, "release",
+         ("asymmetric_yield",)),
+        ("tanh", TANH, "driven", ("asymmetric_damping", "asymmetric_yield")),
     ],
-)
+)  # fmt: skip
 def test_exact_system_jacobian_matches_a_tight_central_difference(
     family, truth, experiment, effects
 ):
     """Spencer driven (states d, z; with an effect's nonlinear terms; with a channel delay,
     whose column is the forward difference in the delay alone, as for the term models),
     Spencer released (states theta, theta_dot, d, z; each run's initial-state columns) and
-    tanh driven (no states) against central differences of runs integrated 100 times
-    tighter."""
+    tanh driven (no states), with the asymmetric shares their forces carry, against
+    central differences of runs integrated 100 times tighter."""
     data = _data(family, truth, experiment, noise=0.01)
     rng = np.random.default_rng(7)
     start = {k: v * rng.uniform(0.7, 1.3) for k, v in truth.items()}
     start.update({"c_st": 0.3, "m": 0.7, "f_c": 0.2, "tau_d": 0.0023})  # off the sample grid
     start.update({"k_w": 800.0, "c_w": 2.0, "m_w": 0.05})  # a mount at 20 Hz
+    start.update({"r_y": 0.35, "r_c": -0.4})
     par = FamilySystemParametrization(family, experiment, start, effects)
     terms = OutputErrorFitter(data, par, jacobian_mode="terms")  # the sensitivities off
     assert not (terms.exact_system or terms.lockstep or terms.exact)

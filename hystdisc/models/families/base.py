@@ -306,6 +306,11 @@ class SystemFamily(Family):
     #: mounted model's Jacobian is taken by differences).
     mount_rate_jac = None
     mount_output_grad = None
+    #: The effects that scale a force of the model (:attr:`~hystdisc.models.effects.Effect.scaled`)
+    #: whose form the family's own compiled force carries: :meth:`block` reads their
+    #: shares (:attr:`~hystdisc.models.effects.Effect.shares`) from the values, 0 when
+    #: absent (the family as it is). The others have no form on the family.
+    scaled_effects: tuple[str, ...] = ()
 
     def system(
         self,

@@ -12,6 +12,10 @@ ties the node to the other end, and ``k1`` is the accumulator's spring::
 (each a linear current law; a saturating or quadratic one when the model carries its
 coefficient, ``alpha_i0`` or ``alpha_i2``, ...: :meth:`~hystdisc.models.Family.law_value`).
 
+With ``asymmetric_yield`` (its share ``r_y``, :attr:`Spencer.scaled_effects`) the
+Bouc-Wen element's force is ``alpha z (1 + r_y sign(z))``: a yield force of ``(1 + r_y)
+alpha`` in tension and ``(1 - r_y) alpha`` in compression where ``z`` saturates.
+
 For a rotary damper read angles and torques. The states are the stretch ``d = x - y`` of
 the Bouc-Wen element and ``z`` (both start at 0: the node starts with the motion).
 
@@ -49,12 +53,13 @@ import numba
 import numpy as np
 
 from hystdisc.models.compiled import N_BASE, rate_grad, term_rate, term_torque, torque_grad
+from hystdisc.models.effects import ASYMMETRIC_YIELD
 from hystdisc.models.families.base import SystemFamily
 from hystdisc.models.params import param_table
 from hystdisc.models.system import EPS_AT, FAMILY_AT, J_AT, KS_AT
 
 # the family block: the 5 hysteresis coefficients of term_rate (A, 0, -beta, 0, -gamma),
-# n, alpha, c0, c1, k0, k1 (current folded in)
+# n, alpha, c0, c1, k0, k1 (current folded in), r_y (asymmetric_yield's share: 0 without it)
 _B = FAMILY_AT
 _N = _B + 5
 _AL = _N + 1
@@ -62,12 +67,16 @@ _C0 = _N + 2
 _C1 = _N + 3
 _K0 = _N + 4
 _K1 = _N + 5
+_RY = _N + 6
+#: The share of ``asymmetric_yield``, the one scaled effect Spencer's force carries.
+(_R_Y,) = ASYMMETRIC_YIELD.shares
 
 
 @numba.njit(cache=True, inline="always")
 def _node_rate(p, x, v, d, z):
-    """y' of the internal node for motion ``x, v``, stretch ``d = x - y`` and ``z``."""
-    return (p[_AL] * z + p[_C0] * v + p[_K0] * d) / (p[_C0] + p[_C1])
+    """y' of the internal node for motion ``x, v``, stretch ``d = x - y`` and ``z``; the
+    hysteretic force ``alpha z (1 + r_y sign(z))``."""
+    return (p[_AL] * (z + p[_RY] * abs(z)) + p[_C0] * v + p[_K0] * d) / (p[_C0] + p[_C1])
 
 
 @numba.njit(cache=True, inline="always")
@@ -91,9 +100,9 @@ def _driven_output(x, u, p):
 
 # behind a compliant mount (the ``series_compliance`` effect on a driven test): the mount's
 # mass, stiffness and damping after the family block
-_MW = _K1 + 1
-_KW = _K1 + 2
-_CW = _K1 + 3
+_MW = _RY + 1
+_KW = _RY + 2
+_CW = _RY + 3
 
 
 @numba.njit(cache=True, nogil=True)
@@ -132,8 +141,8 @@ def _mech_output(x, u, p):
 
 # ---- partial derivatives, for the exact sensitivities (hystdisc.simulation.sensitivity_ode);
 # work: dT/dc (N_BASE), then dR/d(b, n) (6, from _WR), then the node rate's partials in
-# (alpha, c0, c1, k0) (4, from _WN)
-_BLOCK = (_AL, _C0, _C1, _K0)
+# (alpha, c0, c1, k0, r_y) (5, from _WN)
+_BLOCK = (_AL, _C0, _C1, _K0, _RY)
 _WR = N_BASE
 _WN = N_BASE + 6
 
@@ -141,21 +150,25 @@ _WN = N_BASE + 6
 @numba.njit(cache=True, inline="always")
 def _node_grad(p, v, d, z, work):
     """The node rate and its partials in ``d``, ``z`` and the velocity ``v``; its partials
-    in ``alpha, c0, c1, k0`` go to ``work[_WN : _WN + 4]``."""
+    in ``alpha, c0, c1, k0, r_y`` go to ``work[_WN : _WN + 5]``."""
     den = p[_C0] + p[_C1]
-    node = (p[_AL] * z + p[_C0] * v + p[_K0] * d) / den
-    work[_WN] = z / den
+    az = abs(z)
+    hz = z + p[_RY] * az  # the hysteretic force over alpha
+    node = (p[_AL] * hz + p[_C0] * v + p[_K0] * d) / den
+    sz = 1.0 if z > 0.0 else (-1.0 if z < 0.0 else 0.0)
+    work[_WN] = hz / den
     work[_WN + 1] = (v - node) / den
     work[_WN + 2] = -node / den
     work[_WN + 3] = d / den
-    return node, p[_K0] / den, p[_AL] / den, p[_C0] / den
+    work[_WN + 4] = p[_AL] * az / den
+    return node, p[_K0] / den, p[_AL] * (1.0 + p[_RY] * sz) / den, p[_C0] / den
 
 
 @numba.njit(cache=True, inline="always")
 def _stretch_rows(jp, i, rw, work):
     """Rows ``i`` (the stretch rate ``x' - node``) and ``i + 1`` (``z' = R(x' - node, z)``)
     of ``d rate / d p``, from the partials in ``work`` and ``rw = dR/d(x' - node)``."""
-    for q in range(4):
+    for q in range(5):
         jp[i, _BLOCK[q]] = -work[_WN + q]
         jp[i + 1, _BLOCK[q]] = -rw * work[_WN + q]
     for q in range(6):
@@ -168,7 +181,7 @@ def _force_row(row, den, c1, node, work):
     block, ``k1``'s aside), from the partials in ``work``; ``den = -1``: ``dF/dp`` itself."""
     for i in range(N_BASE):
         row[i] = -work[i] / den
-    for i in range(4):
+    for i in range(5):
         row[_BLOCK[i]] = -c1 * work[_WN + i] / den
     row[_C1] -= node / den
 
@@ -339,6 +352,10 @@ class Spencer(SystemFamily):
     mount_output = staticmethod(_mount_output)
     mount_rate_jac = staticmethod(_mount_rate_jac)
     mount_output_grad = staticmethod(_mount_output_grad)
+    #: A yield force that differs in tension and compression, at the internal node
+    #: (``alpha z (1 + r_y sign(z))``); a damping that does is not built (``c0`` acts on
+    #: the node's relative velocity, which the node rate itself sets).
+    scaled_effects = (ASYMMETRIC_YIELD.name,)
     driven_rate_jac = staticmethod(_driven_rate_jac)
     driven_output_grad = staticmethod(_driven_output_grad)
     mech_rate_jac = staticmethod(_mech_rate_jac)
@@ -347,7 +364,8 @@ class Spencer(SystemFamily):
     def block(self, p: Mapping[str, float], current: float) -> np.ndarray:
         """The family's part of the parameter vector at ``current`` (see the module; the
         current laws folded in by :meth:`~hystdisc.models.Family.law_value`, a saturating
-        or quadratic law when ``p`` has its coefficient).
+        or quadratic law when ``p`` has its coefficient), ``asymmetric_yield``'s share
+        last (0 when ``p`` has none).
 
         Examples
         --------
@@ -370,6 +388,7 @@ class Spencer(SystemFamily):
                 self.law_value(p, "c1", i),
                 p["k0"],
                 p.get("k1", 0.0),
+                p.get(_R_Y, 0.0),
             ]
         )
 

@@ -7,6 +7,10 @@ model's hysteresis)::
     F     = c x' + k x + alpha tanh(beta x' + delta sign(x))
     c     = c_a + c_b i,   alpha = alpha_a + alpha_b i
 
+With ``asymmetric_damping`` (share ``r_c``) and ``asymmetric_yield`` (share ``r_y``),
+:attr:`Tanh.scaled_effects`, the two forces differ in tension and compression: ``c x' (1 +
+r_c sign(x'))`` and ``alpha h (1 + r_y sign(h))`` with ``h`` the hyperbolic tangent.
+
 For a rotary damper read angles and torques. The model has no internal state: in a
 driven experiment it is a map of the imposed motion, in a release or forced rig the
 states are the rig's (``k`` is the rig spring ``k_s`` there and is left out). Kwok et
@@ -36,23 +40,30 @@ import numba
 import numpy as np
 
 from hystdisc.models.compiled import N_BASE, term_torque, torque_grad
+from hystdisc.models.effects import ASYMMETRIC_DAMPING, ASYMMETRIC_YIELD
 from hystdisc.models.families.base import SystemFamily
 from hystdisc.models.params import param_table
 from hystdisc.models.system import EPS_AT, FAMILY_AT, J_AT, KS_AT
 
 # the family block, after the effects' N_BASE coefficients, eps, k_s and J: c, alpha
-# (current folded in), beta, delta, k
+# (current folded in), beta, delta, k, and the shares r_c, r_y of the asymmetric damping
+# and yield (0 without them)
 _C = FAMILY_AT
 _AL = _C + 1
 _BE = _C + 2
 _DE = _C + 3
 _K = _C + 4
+_RC = _C + 5
+_RY = _C + 6
+(_R_C,) = ASYMMETRIC_DAMPING.shares
+(_R_Y,) = ASYMMETRIC_YIELD.shares
 
 
 @numba.njit(cache=True, inline="always")
 def _force(p, x, v):
     s = 1.0 if x > 0.0 else (-1.0 if x < 0.0 else 0.0)
-    out = p[_C] * v + p[_K] * x + p[_AL] * math.tanh(p[_BE] * v + p[_DE] * s)
+    h = math.tanh(p[_BE] * v + p[_DE] * s)
+    out = p[_C] * (v + p[_RC] * abs(v)) + p[_K] * x + p[_AL] * (h + p[_RY] * abs(h))
     return out + term_torque(p[:N_BASE], x, v, 0.0, p[EPS_AT])
 
 
@@ -94,14 +105,18 @@ def _driven_output_grad(x, u, p, need, gx, gp, work):
     s = 1.0 if xx > 0.0 else (-1.0 if xx < 0.0 else 0.0)
     th = math.tanh(p[_BE] * v + p[_DE] * s)
     sech2 = 1.0 - th * th
+    sh = 1.0 if th > 0.0 else (-1.0 if th < 0.0 else 0.0)
     torque_grad(p[:N_BASE], xx, v, 0.0, p[EPS_AT], need[:N_BASE], work[:N_BASE])
     for i in range(N_BASE):
         gp[i] = work[i]
-    gp[_C] = v
+    gp[_C] = v + p[_RC] * abs(v)
     gp[_K] = xx
-    gp[_AL] = th
-    gp[_BE] = p[_AL] * sech2 * v
-    gp[_DE] = p[_AL] * sech2 * s
+    gp[_AL] = th + p[_RY] * abs(th)
+    a = p[_AL] * (1.0 + p[_RY] * sh)  # d(alpha h (1 + r_y sign(h))) / dh
+    gp[_BE] = a * sech2 * v
+    gp[_DE] = a * sech2 * s
+    gp[_RC] = p[_C] * abs(v)
+    gp[_RY] = p[_AL] * abs(th)
 
 
 _PARAMS = """
@@ -141,11 +156,14 @@ class Tanh(SystemFamily):
     mech_output = staticmethod(_mech_output)
     driven_rate_jac = staticmethod(_driven_rate_jac)
     driven_output_grad = staticmethod(_driven_output_grad)
+    #: A damping and a yield force that differ in tension and compression.
+    scaled_effects = (ASYMMETRIC_DAMPING.name, ASYMMETRIC_YIELD.name)
     # none in a release or forced rig: the rate jumps with sign(theta), and the
     # sensitivities would need the jump's saltation at every zero crossing
 
     def block(self, p: Mapping[str, float], current: float) -> np.ndarray:
-        """The family's part of the parameter vector at ``current``."""
+        """The family's part of the parameter vector at ``current``, the shares of the
+        asymmetric damping and yield last (0 when ``p`` has none)."""
         i = float(current)
         return np.array(
             [
@@ -154,6 +172,8 @@ class Tanh(SystemFamily):
                 p["beta"],
                 p["delta"],
                 p.get("k", 0.0),
+                p.get(_R_C, 0.0),
+                p.get(_R_Y, 0.0),
             ]
         )
 
