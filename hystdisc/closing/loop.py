@@ -162,34 +162,42 @@ def _structural_scores(data, current, names, cells: dict, say) -> list[EffectSco
 
 
 def _backward(data, fit, out: LoopResult, max_nfev, heldout, say, fits: dict) -> OEFit:
-    """Drop earlier effects that a later one made redundant (parameter not significant)."""
-    while len(out.effects) > 1:
+    """Drop earlier effects that a later one made redundant (parameter not significant):
+    the loop's own, and a measurement effect the model carried into the loop (a channel
+    delay stage 1 saw in a misfit the loop's effect explains: ``out.dropped``)."""
+    while out.effects:
+        carried = [
+            e
+            for e in fit.par.effects
+            if e not in out.effects and EFFECTS[e].has_role("measurement")
+        ]
         weak = [
             (wald_chi2(fit, e), e)
-            for e in out.effects[:-1]
+            for e in [*carried, *out.effects[:-1]]
             if wald_chi2(fit, e) <= np.log(fit.n_obs)
         ]
         if not weak:
             break
         _, name = min(weak)
-        keep = [e for e in out.effects if e != name]
         say(f"closing the loop: {name} became redundant, refit without it")
         par0 = fit.par
         start = {k: v for k, v in fit.params.items()}
-        par = par0.like(start, tuple(keep))
+        par = par0.like(start, tuple(e for e in par0.effects if e != name))
         with np.errstate(all="ignore"):
             new = OutputErrorFitter(data, par, max_nfev=max_nfev).fit(heldout=heldout)
         if not (fit_ok(new, fit) and new.bic < fit.bic):
             break
-        out.effects.remove(name)
+        why = f"{out.effects[-1]} made it redundant: its parameter was no longer significant"
+        if name in carried:
+            out.dropped[name] = why
+        else:
+            out.effects.remove(name)
         fits[frozenset(out.effects)] = new
         for verdict in out.tried:
             if verdict.name == name and verdict.accepted:
                 verdict.accepted = False
                 verdict.removed = True
-                verdict.note = (
-                    f"{out.effects[-1]} made it redundant: its parameter was no longer significant"
-                )
+                verdict.note = why
         fit = new
     return fit
 

@@ -360,6 +360,10 @@ class LoopResult:
     pointed : dict of str to dict
         The effects the open library pointed at (refitted in the library's round), each
         with the start values it gave (:func:`~hystdisc.closing.loop.augment`).
+    dropped : dict of str to str
+        Measurement effects the base fit carried into the loop (a channel delay judged
+        before it) that an accepted effect made redundant, each with why: the final fit
+        no longer has them.
     """
 
     base: OEFit
@@ -373,3 +377,4 @@ class LoopResult:
     unexplained: bool = False
     unexplained_text: str | None = None
     pointed: dict[str, dict[str, float]] = field(default_factory=dict)
+    dropped: dict[str, str] = field(default_factory=dict)

@@ -282,7 +282,12 @@ class Round:
         if restarted:
             verdict.restarted = True
         wanted = verdict.improves and verdict.significant
-        if wanted and not (verdict.admissible and verdict.predicts):
+        # a share a state-space family's force carries (the family has no stage-1 start):
+        # a refit rejected or left above the noise may sit where the missing share bent
+        # the family (share_restart)
+        share = cur.is_system and bool(EFFECTS[s.name].scaled)
+        share = share and not restarted and (new.rms > self.good_rms or not verdict.acceptable)
+        if share or (wanted and not (verdict.admissible and verdict.predicts)):
             again = self._restart_start(s.name, dict(new.params), cur.par)
             if again is not None:
                 self.say(f"closing the loop: refit with {s.name} from the restarted family")

@@ -535,7 +535,10 @@ def system_fit(
     name : str
         The state-space family.
     base : OEFit
-        The fit its starts are mapped from (its rig parameters are kept).
+        The fit its starts are mapped from (its rig parameters are kept, and so are its
+        measurement effects and the shares of the scaled effects the family carries,
+        :attr:`~hystdisc.models.families.base.SystemFamily.scaled_effects`, with their
+        values).
     data : FitData
         The runs.
     max_nfev : int
@@ -558,9 +561,13 @@ def system_fit(
     bp = dict(base.params)
     vel = float(np.median([np.max(np.abs(w)) for w in data.theta_dot]))
     starts = fam.starts(bp, velocity=vel, dt=1.0 / sampling_rate(data.t))
-    # the base's measurement effects (a channel delay every family carries) with their values
+    # the base's measurement effects (a channel delay every family carries) and the shares
+    # the family's own force carries (an asymmetric yield: Family.scaled_effects), with
+    # their values
     effects = tuple(
-        e for e in base.par.effects if not EFFECTS[e].terms and not EFFECTS[e].structural
+        e
+        for e in base.par.effects
+        if (not EFFECTS[e].terms and not EFFECTS[e].structural) or e in fam.scaled_effects
     )
     carried = ("k_s", "J", *(q.name for e in effects for q in EFFECTS[e].params))
     for _, st in starts:

@@ -24,10 +24,12 @@ from hystdisc.closing.open_library import (
 )
 from hystdisc.closing.refit import has_spring
 from hystdisc.closing.reselect import Context
+from hystdisc.closing.share_restart import first_of, share_restart
 from hystdisc.discovery.delay import MIN_DBIC
 from hystdisc.errors import HystdiscWarning
 from hystdisc.fitting import OEFit
 from hystdisc.models import EFFECTS
+from hystdisc.pipeline.families import first_fit
 from hystdisc.pipeline.state import State
 from hystdisc.simulation.admissibility import check_admissible
 
@@ -149,21 +151,37 @@ def refit_library(state: State, lib: ResidualTerms, fit: OEFit) -> TermsRefit | 
     )  # fmt: skip
 
 
+def term_fit(state: State, name: str) -> OEFit | None:
+    """The term family ``name``'s fit: the table's, else its first fit (made now); the
+    start of a state-space family's restart with a share its force carries
+    (:func:`~hystdisc.closing.share_restart.share_restart`)."""
+    fit = state.family_fits.get(name)
+    return fit if fit is not None else first_fit(state, name)
+
+
 def close(state: State, fit_family: Callable) -> None:
     """The loop, the comparison again, equal fits, the final model and its admissibility.
 
     ``fit_family(dataset, family)`` fits one family with all its starts and no loop (the
     restart of a shift or a play effect:
-    :func:`~hystdisc.closing.motion_restart.motion_restart`).
+    :func:`~hystdisc.closing.motion_restart.motion_restart`); a share a state-space
+    family's force carries is restarted from its start family's fit
+    (:func:`~hystdisc.closing.share_restart.share_restart`).
     """
     opts, fd, failures = state.options, state.fd, state.failures
     selected = state.family_fits[state.family]
     restart = None
     if opts.close_loop:
         motion = fd.motion_noise.std if fd.motion_noise is not None else 0.0
-        restart = motion_restart(
-            state.dataset, fit_family, state.say, min_shift=fd.noise_std, min_play=motion
-        )
+        restart = first_of(
+            motion_restart(
+                state.dataset, fit_family, state.say, min_shift=fd.noise_std, min_play=motion
+            ),
+            share_restart(
+                fd, state.eq, lambda name: term_fit(state, name), state.stage1_shape,
+                opts.max_nfev, state.say, state.map,
+            ),
+        )  # fmt: skip
         state.loop = _loop(state, selected, restart)
     state.bics = {n: f.bic for n, f in state.family_fits.items()}
     # the staged laws belong to the selected family alone: no other family replaces it
@@ -199,6 +217,15 @@ def close(state: State, fit_family: Callable) -> None:
         state.open_library.refit = failures.guard(
             "open library refit", refit_library, state, state.open_library, state.final_fit
         )
+    # a measurement effect judged before the loop that the final model no longer carries
+    # (an effect of the loop made it redundant) is not reported as found
+    for v in state.measured:
+        if v.entry is not None and v.entry.name not in state.final_fit.par.effects:
+            why = "the final model does not carry it"
+            if state.loop is not None:
+                why = state.loop.dropped.get(v.entry.name, why)
+            v.note = f"{v.note}; then dropped: {why}"
+            v.entry = None
     kept = [v.entry.name for v in state.measured if v.entry is not None]
     state.effects = kept + ([] if state.loop is None else list(state.loop.effects))
     final = state.final_fit
