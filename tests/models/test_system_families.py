@@ -183,7 +183,7 @@ TANH_TRUTH = {
 }
 
 
-def test_the_loop_tries_the_asymmetry_spencer_carries_and_says_why_not_the_other(spencer_fit):
+def test_the_asymmetry_spencer_carries_is_a_candidate_and_the_other_says_why_not(spencer_fit):
     """An asymmetric yield or damping is a share of the model's ``z`` or ``theta_dot``
     torque term. Spencer's force has neither term, but its compiled force carries the
     yield's share at the internal node (``alpha z (1 + r_y sign(z))``): that one is a
