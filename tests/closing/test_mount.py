@@ -112,9 +112,10 @@ def test_no_mount_nothing_claimed():
     assert d.loop_.effects == [] and not d.loop_.unexplained
 
 
-def test_mount_starts_span_stiffness_above_the_damper():
-    data = _data(True)
-    d = Discovery(model=FAMILY, close_loop=False).fit(data)
+def test_mount_starts_span_stiffness_above_the_damper(mount_fit):
+    # the family's fit and data without the loop: the loop reads them and changes neither,
+    # so mount_fit's are those of Discovery(model=FAMILY, close_loop=False) on _data(True)
+    d = mount_fit
     mount = get_effect("series_compliance").structure
     starts = mount_starts(d.family_fits_[FAMILY], d.fit_data_, mount)
     k = sorted({round(s["k_w"], 6) for s in starts})

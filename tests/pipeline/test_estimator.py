@@ -10,7 +10,9 @@ synthetic dataset.
 
 from __future__ import annotations
 
+import contextlib
 import copy
+import io
 import pickle
 from functools import cache
 
@@ -49,8 +51,26 @@ def _data():
 
 
 @cache
+def _fit_call() -> tuple[Discovery, dict, object]:
+    """``Discovery(**FAST)`` fitted on ``_data()``: the estimator, a copy of its parameters
+    before ``fit``, and what ``fit`` returned; made once for the tests that read it."""
+    d = Discovery(**FAST)
+    before = copy.deepcopy(d.get_params())
+    return d, before, d.fit(_data())
+
+
 def _fitted() -> Discovery:
-    return Discovery(**FAST).fit(_data())
+    return _fit_call()[0]
+
+
+@cache
+def _without_loop() -> tuple[Discovery, str]:
+    """``Discovery(**FAST, close_loop=False)`` fitted on ``_data()``, with what the fit
+    wrote on stderr; made once for the tests that read it."""
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        d = Discovery(**FAST, close_loop=False).fit(_data())
+    return d, err.getvalue()
 
 
 def _same(a, b) -> bool:
@@ -96,9 +116,8 @@ def test_sklearn_estimator_checks(check):
 
 
 def test_fit_returns_self_and_leaves_the_parameters_alone():
-    d = Discovery(**FAST)
-    before = copy.deepcopy(d.get_params())
-    assert d.fit(_data()) is d
+    d, before, returned = _fit_call()  # Discovery(**FAST), its parameters, fit(_data())
+    assert returned is d
     after = d.get_params()
     assert set(before) == set(after)
     assert all(_same(before[k], after[k]) for k in before), after
@@ -117,7 +136,7 @@ def test_fitted_attributes_end_in_underscore():
 
 
 def test_without_the_loop_the_final_fit_is_the_selected_one():
-    d = Discovery(**FAST, close_loop=False).fit(_data())
+    d, _ = _without_loop()
     assert d.loop_ is None and d.effects_ == []
     assert d.final_fit_ is d.family_fits_[d.family_]
     assert "effects_tried" not in d.results_.summary()
@@ -158,9 +177,9 @@ def test_progress_callback_replaces_verbose(capsys):
     assert "closing the loop: residual -> catalogued effects" in messages
 
 
-def test_quiet_by_default(capsys):
-    Discovery(**FAST, close_loop=False).fit(_data())
-    assert capsys.readouterr().err == ""
+def test_quiet_by_default():
+    _, err = _without_loop()  # Discovery(**FAST, close_loop=False).fit(_data())'s stderr
+    assert err == ""
 
 
 def test_predict_labels_each_run():

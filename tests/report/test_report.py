@@ -4,8 +4,11 @@ from __future__ import annotations
 
 import base64
 import binascii
+import contextlib
+import io
 from html.parser import HTMLParser
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 
@@ -228,15 +231,28 @@ def csv_file(tmp_path_factory) -> Path:
     return path
 
 
-def test_cli_report(csv_file, tmp_path, capsys):
-    out = tmp_path / "r.html"
+@pytest.fixture(scope="module")
+def report_by_data(csv_file, tmp_path_factory):
+    """``hystdisc report`` of ``csv_file`` (dahl and bingham, no held-out errors, two runs
+    drawn) with what it printed, made once for the two tests that read it. Not quiet:
+    ``--quiet`` changes only the progress on stderr and the closing line (the HTML and
+    the Markdown are the same bytes)."""
+    out = tmp_path_factory.mktemp("report") / "r.html"
     argv = ["report", str(csv_file), "-o", str(out), "--families", "dahl,bingham"]
-    code = main([*argv, "--no-heldout", "--max-runs", "2"])
-    captured = capsys.readouterr()
-    assert code == 0, captured.err
+    stdout, stderr = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr):
+        code = main([*argv, "--no-heldout", "--max-runs", "2"])
+    return SimpleNamespace(
+        argv=argv, out=out, code=code, out_text=stdout.getvalue(), err=stderr.getvalue()
+    )
+
+
+def test_cli_report(report_by_data, capsys):
+    out, argv = report_by_data.out, report_by_data.argv
+    assert report_by_data.code == 0, report_by_data.err
     assert out.exists() and out.with_suffix(".md").exists()
-    assert "wrote" in captured.out
-    assert "stage 2" in captured.err  # progress on stderr
+    assert "wrote" in report_by_data.out_text
+    assert "stage 2" in report_by_data.err  # progress on stderr
     scan = _scan(out.read_text(encoding="utf-8"))
     assert {sid for sid, _ in SECTIONS} - OPTIONAL <= set(scan.h2_ids)
     # refuses to overwrite, before any work, with one line and exit status 2
@@ -385,13 +401,16 @@ def test_failed_tasks_are_reported_when_present(families_data):
         assert sections(empty).present == ["summary"]
 
 
-def test_report_of_results_json_is_the_report_of_the_data(csv_file, tmp_path, capsys, monkeypatch):
+def test_report_of_results_json_is_the_report_of_the_data(
+    csv_file, report_by_data, tmp_path, capsys, monkeypatch
+):
     fast = ["--families", "dahl,bingham", "--no-heldout", "--quiet"]
     assert main(["discover", str(csv_file), "--out", str(tmp_path / "fit"), *fast]) == 0
     results = tmp_path / "fit" / "results.json"
     assert (tmp_path / "fit" / "results.report.npz").is_file()
-    by_data = tmp_path / "data.html"
-    assert main(["report", str(csv_file), "-o", str(by_data), *fast, "--max-runs", "2"]) == 0
+    # the report of the data with the same options, --max-runs 2 (see ``report_by_data``)
+    by_data = report_by_data.out
+    assert report_by_data.code == 0
 
     def no_refit(*args, **kwargs):
         raise AssertionError("report results.json fitted again")

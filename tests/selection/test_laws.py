@@ -212,8 +212,8 @@ def test_results_report_and_plot_carry_the_laws(saturating_case):
     assert md.count("| chosen laws |") == 1
 
 
-def test_staged_fit_needs_three_levels():
-    data = synthetic(alpha_linear)
+def test_staged_fit_needs_three_levels(linear_case):
+    *_, data = linear_case  # synthetic(alpha_linear), which no fit changes
     two = Dataset([r for r in data.runs if r.current in (0.0, 1.0)], "driven", "two levels")
     d = Discovery(model="bouc-wen-std", close_loop=False, heldout=False).fit(two)
     with pytest.raises(HystdiscError, match="2 current level.s.: the staged fit needs 3"):
