@@ -67,9 +67,10 @@ def share_restart(
         ``values`` with the family's parameters and the effect's share replaced by those
         of the state-space family fitted from the term family's optimum with the effect;
         None for other effects, without stage-1 data, or when a fit fails. One restart
-        per family and effect.
+        per family and effect, one ``base_fit`` per start family.
     """
     made: dict[tuple[str, str], dict | None] = {}
+    bases: dict[str, OEFit | None] = {}  # one start family's fit for every share
 
     def restart(effect: str, values: dict, par) -> dict | None:
         fam = par.family
@@ -86,7 +87,9 @@ def share_restart(
         return None if own is None else {**values, **own}
 
     def _restarted(fam, effect: str) -> dict | None:
-        base = base_fit(fam.start_base)
+        if fam.start_base not in bases:
+            bases[fam.start_base] = base_fit(fam.start_base)
+        base = bases[fam.start_base]
         if base is None:
             return None
         say(f"closing the loop: {fam.name} restarted from {fam.start_base} with {effect}")
